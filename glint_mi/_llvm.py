@@ -1,0 +1,69 @@
+"""Locate an LLVM >= 17 shared library for Dr.Jit's LLVM backend and refuse older ones with a clear error.
+
+drjit 1.5 aborts the whole process (``LLVM ERROR: Cannot select ... fminimum``) on LLVM 15/16 and refuses LLVM 14,
+so the choice must be made *before* ``drjit`` is first imported, through ``DRJIT_LIBLLVM_PATH``.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import re
+import sys
+
+MIN_LLVM = (17,)
+FIX = ("Install a usable LLVM: `pip install karellen-llvm-core==19.1.7` (puts libLLVM.so.19.1 in <venv>/lib) "
+       "or `apt-get install libllvm19`, or point DRJIT_LIBLLVM_PATH at a libLLVM of version >= 17.")
+
+
+class LLVMError(RuntimeError):
+    """Raised when Dr.Jit's LLVM backend would run on an LLVM that drjit 1.5 cannot use."""
+
+
+def _version_of(path: str) -> tuple[int, ...] | None:
+    m = re.search(r"LLVM[-.]?(?:so\.)?(\d+)(?:\.(\d+))?", os.path.basename(path))
+    if not m:
+        return None
+    return tuple(int(g) for g in m.groups() if g is not None)
+
+
+def candidate_libraries() -> list[str]:
+    """Every libLLVM this process could use, best first (venv wheel, then system packages)."""
+    prefixes = {sys.prefix, os.path.dirname(os.path.dirname(sys.executable))}
+    found: list[str] = []
+    for prefix in prefixes:
+        found += glob.glob(os.path.join(prefix, "lib", "libLLVM.so.*")) + glob.glob(os.path.join(prefix, "lib", "libLLVM-*.so*"))
+    for major in range(25, 16, -1):
+        found += glob.glob(f"/usr/lib/llvm-{major}/lib/libLLVM*.so*")
+        found += glob.glob(f"/usr/lib/*-linux-gnu/libLLVM-{major}*.so*") + glob.glob(f"/usr/lib/*-linux-gnu/libLLVM.so.{major}*")
+        found += glob.glob(f"/opt/homebrew/opt/llvm@{major}/lib/libLLVM.dylib")
+    usable = [p for p in dict.fromkeys(found) if (_version_of(p) or (0,)) >= MIN_LLVM and os.path.exists(p)]
+    return sorted(usable, key=lambda p: (not p.startswith(sys.prefix), tuple(-v for v in _version_of(p) or (0,))))
+
+
+def configure_environment() -> str | None:
+    """Set DRJIT_LIBLLVM_PATH to a usable LLVM unless the user chose one; returns the path in force."""
+    chosen = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if chosen:
+        return chosen
+    if "drjit" in sys.modules:  # too late to steer the search; check_llvm() will judge what was loaded
+        return None
+    libs = candidate_libraries()
+    if libs:
+        os.environ["DRJIT_LIBLLVM_PATH"] = libs[0]
+        return libs[0]
+    return None
+
+
+def check_llvm() -> tuple[int, ...]:
+    """Return the LLVM version Dr.Jit loaded; raise LLVMError (never abort) when it is missing or older than 17."""
+    import drjit as dr
+
+    try:
+        version = tuple(dr.detail.llvm_version())
+    except Exception as exc:  # no LLVM could be loaded at all
+        raise LLVMError(f"Dr.Jit could not load an LLVM library ({exc}). {FIX}") from None
+    if version < MIN_LLVM:
+        where = os.environ.get("DRJIT_LIBLLVM_PATH", "the system search path")
+        raise LLVMError(f"Dr.Jit loaded LLVM {'.'.join(map(str, version))} from {where}; drjit 1.5 needs LLVM >= 17 "
+                        f"(LLVM 15/16 abort the process, 14 is refused). {FIX}")
+    return version

@@ -1,0 +1,87 @@
+"""The project's conventions, stated once: units, depth, normals, quaternion orders, activations, colour spaces.
+
+Everything else imports these helpers instead of re-deriving them.
+
+- Units: metres; world frame right-handed, +Z up for generated rooms.
+- Depth: *planar camera z* of the first surface (Cycles' Z pass). Integrators composite the distance ``t`` along the
+  (unit) ray and convert with :func:`planar_depth`.
+- Normals: world-space unit vectors, flipped to face the incoming ray. Camera-space comparisons use OpenCV axes
+  (x right, y down, z forward), see :func:`world_to_opencv_normals`.
+- Quaternions: Mitsuba ``ellipsoids`` store (x, y, z, w), identity (0, 0, 0, 1); 3DGS ``.ply`` ``rot_0..3`` store
+  (w, x, y, z). Convert only with :func:`wxyz_to_xyzw` / :func:`xyzw_to_wxyz`.
+- Activations (graphdeco 3DGS): scale = exp(raw), opacity / specular / transparency = sigmoid(raw),
+  colour = max(SH(d) + 0.5, 0) with SH coefficients stored coefficient-major ``[c0 r g b, c1 r g b, ...]``.
+- Colour: Gaussian colours and integrator outputs are *linear* RGB; PNGs are 8-bit sRGB.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+SH_C0 = 0.28209479177387814  # Y_0^0, so colour = SH_C0 * dc + 0.5 for degree 0
+IDENTITY_XYZW = (0.0, 0.0, 0.0, 1.0)
+ROLES = ("interface", "transmission", "reflection")
+KERNELS = ("surfel", "ellipsoid")
+
+
+def wxyz_to_xyzw(q: np.ndarray) -> np.ndarray:
+    """[N, 4] (w, x, y, z) -> [N, 4] (x, y, z, w)."""
+    q = np.asarray(q)
+    return np.concatenate([q[..., 1:4], q[..., 0:1]], axis=-1)
+
+
+def xyzw_to_wxyz(q: np.ndarray) -> np.ndarray:
+    """[N, 4] (x, y, z, w) -> [N, 4] (w, x, y, z)."""
+    q = np.asarray(q)
+    return np.concatenate([q[..., 3:4], q[..., 0:3]], axis=-1)
+
+
+def normalize_quaternions_xyzw(q: np.ndarray) -> np.ndarray:
+    """Unit quaternions; a (near-)zero quaternion becomes the identity instead of NaN."""
+    q = np.asarray(q, dtype=np.float64)
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    ident = np.broadcast_to(np.array(IDENTITY_XYZW), q.shape)
+    return np.where(n > 1e-12, q / np.maximum(n, 1e-30), ident)
+
+
+def sigmoid(x):
+    x = np.asarray(x, dtype=np.float64)
+    return 1.0 / (1.0 + np.exp(-x))
+
+
+def logit(p, eps: float = 1e-7):
+    p = np.clip(np.asarray(p, dtype=np.float64), eps, 1.0 - eps)
+    return np.log(p / (1.0 - p))
+
+
+def sh_degree_from_coeffs(n_values: int) -> int:
+    """Degree of an SH colour block with ``n_values`` = 3 (deg + 1)^2 floats; raises for other widths."""
+    k = n_values // 3
+    deg = int(round(np.sqrt(k))) - 1
+    if n_values % 3 or (deg + 1) ** 2 != k or not 0 <= deg <= 3:
+        raise ValueError(f"{n_values} SH values per Gaussian is not 3*(deg+1)^2 for a degree 0..3")
+    return deg
+
+
+def planar_depth(t, ray_d, forward):
+    """Distance ``t`` along unit ray directions ``ray_d`` [.., 3] -> planar camera z (dot with the camera forward)."""
+    return t * np.sum(np.asarray(ray_d) * np.asarray(forward), axis=-1)
+
+
+def world_to_opencv_normals(n_world: np.ndarray, cam_to_world: np.ndarray) -> np.ndarray:
+    """World normals [.., 3] -> camera normals in OpenCV axes, given a Mitsuba camera-to-world 4x4 matrix.
+
+    Mitsuba cameras look along +z with +y up and +x *left* in the image; OpenCV is x right, y down, z forward.
+    """
+    R = np.asarray(cam_to_world)[:3, :3]
+    n_cam_mi = np.asarray(n_world) @ R  # R^T n for row vectors
+    return n_cam_mi * np.array([-1.0, -1.0, 1.0])
+
+
+def linear_to_srgb(x):
+    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, None)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def srgb_to_linear(x):
+    x = np.asarray(x, dtype=np.float64)
+    return np.where(x <= 0.04045, x / 12.92, np.power((x + 0.055) / 1.055, 2.4))

@@ -1,0 +1,157 @@
+"""The ``glint_gaussians`` shape: one Gaussian set (interface, transmission or reflection) for the ``glint`` integrator.
+
+.. pluginparameters::
+
+ * - role
+   - |string|
+   - ``interface``, ``transmission`` or ``reflection``. (Default: the name under which the shape is nested in the
+     integrator, else required)
+ * - kernel
+   - |string|
+   - ``surfel`` (flat 2D Gaussian evaluated where the ray crosses its plane; normal = thin axis; default, as in the
+     paper) or ``ellipsoid`` (3D Gaussian evaluated at its peak along the ray, as in 3DGRT).
+ * - filename
+   - |string|
+   - A 3DGS ``.ply`` (raw values: log scales, logit opacity, rot_0..3 = w,x,y,z; optional ``specular`` and
+     ``transparency`` logits).
+ * - centers, scales, quaternions, opacities, sh_coeffs, specular, transparency
+   - |tensor|
+   - Activated values instead of a file: [N,3] metres, [N,3] standard deviations, [N,4] (x,y,z,w), [N,1], [N,3K]
+     coefficient-major linear-RGB SH, [N,1], [N,1]. Missing opacities/specular/transparency take the paper's inits
+     (0.5 / 1e-3 / 0.01); missing SH gives grey.
+ * - extent
+   - |float|
+   - Shell radius in standard deviations. (Default: 3.33 = sqrt(2 ln 255), where alpha of an opaque Gaussian drops
+     below the 1/255 cut-off, so the shell adds no discontinuity)
+ * - min_shell_ratio
+   - |float|
+   - No shell axis thinner than this fraction of the longest one (BVH proxy only; see README "Limits"). (Default: 0.3)
+
+Mitsuba 3.9.1 cannot subclass ``mi.Shape`` from Python, so the factory returns a configured built-in ``ellipsoids``
+shape and records the set's role and kernel in :data:`SET_INFO`. The ellipsoid ``data`` is the *bounding shell*; the
+kernel's own standard deviations live in the ``kernel_scales`` attribute, which is what the integrator evaluates.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import mitsuba as mi
+import numpy as np
+
+from glint_mi import conventions as cv
+from glint_mi.gaussians import GaussianDataError, GaussianSet
+
+DEFAULT_EXTENT = float(np.sqrt(2.0 * np.log(255.0)))
+
+
+@dataclasses.dataclass
+class SetInfo:
+    role: str | None
+    kernel: str
+    empty: bool
+    source: str
+    min_shell_ratio: float
+    shape: object = dataclasses.field(repr=False, default=None)  # keeps id(shape) from being reused
+
+
+SET_INFO: dict[int, SetInfo] = {}
+
+
+def info(shape) -> SetInfo:
+    """Metadata of a shape made by this factory; raises for any other shape."""
+    try:
+        return SET_INFO[id(shape)]
+    except KeyError:
+        raise ValueError(f"shape '{shape.id()}' is not a glint_gaussians shape (declare it with "
+                         f"type=\"glint_gaussians\")") from None
+
+
+def _tensor(props, name, source, width=None):
+    value = np.asarray(props.get(name), dtype=np.float64)
+    if value.ndim == 1 and width:
+        value = value.reshape(-1, width) if value.size % width == 0 else value
+    if width and (value.ndim != 2 or value.shape[1] != width):
+        raise GaussianDataError(f"{source}: property '{name}' has shape {value.shape}, expected (N, {width}).")
+    return value
+
+
+def gaussian_set_from_props(props, source: str) -> GaussianSet:
+    """The GaussianSet described by a shape's properties (file or tensors)."""
+    if props.has_property("filename"):
+        return GaussianSet.load_ply(mi.Thread.thread().file_resolver().resolve(props.get("filename")))
+    if props.has_property("data"):
+        data = _tensor(props, "data", source, 10)
+        centers, scales, quats = data[:, :3], data[:, 3:6], data[:, 6:10]
+    elif props.has_property("centers"):
+        centers = _tensor(props, "centers", source, 3)
+        scales = _tensor(props, "scales", source, 3) if props.has_property("scales") else np.full_like(centers, 0.01)
+        quats = _tensor(props, "quaternions", source, 4) if props.has_property("quaternions") else None
+    else:
+        raise GaussianDataError(f"{source}: give 'filename' (a 3DGS .ply) or 'centers' (+ scales, quaternions, ...) "
+                                f"or 'data' (N x 10).")
+    n = len(centers)
+    for name, arr in (("centers", centers), ("scales", scales)):
+        if len(arr) != n:
+            raise GaussianDataError(f"{source}: property '{name}' has {len(arr)} rows but 'centers' has {n}.")
+        if not np.all(np.isfinite(arr)):
+            raise GaussianDataError(f"{source}: property '{name}' contains NaN/Inf.")
+    if n and np.any(~(scales > 0)):
+        raise GaussianDataError(f"{source}: property 'scales' must be > 0 (standard deviations in metres).")
+
+    def column(name, default):
+        if not props.has_property(name):
+            return None
+        arr = _tensor(props, name, source, 1)
+        if len(arr) != n:
+            raise GaussianDataError(f"{source}: property '{name}' has {len(arr)} rows, expected {n}.")
+        if not np.all((arr >= 0) & (arr <= 1)):
+            raise GaussianDataError(f"{source}: property '{name}' must lie in [0, 1] (activated values).")
+        return arr[:, 0]
+
+    sh = None
+    if props.has_property("sh_coeffs"):
+        raw = np.asarray(props.get("sh_coeffs"), np.float64)
+        raw = raw.reshape(n, -1) if n else raw.reshape(0, 3)
+        try:
+            cv.sh_degree_from_coeffs(raw.shape[1])
+        except ValueError as exc:
+            raise GaussianDataError(f"{source}: property 'sh_coeffs': {exc}.") from None
+        sh = raw.reshape(n, -1, 3)
+    if n == 0:
+        return GaussianSet.empty(0 if sh is None else int(round(sh.shape[1] ** 0.5)) - 1)
+    return GaussianSet.from_activated(centers, scales, quats, opacities=column("opacities", 0.5), sh=sh,
+                                      specular=column("specular", 1e-3), transparency=column("transparency", 0.01))
+
+
+def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = None, shape_id: str = "",
+               extent: float = DEFAULT_EXTENT, min_shell_ratio: float = 0.3, source: str = "glint_gaussians"):
+    """Instantiate the ``ellipsoids`` shape for a GaussianSet and register its metadata."""
+    if kernel not in cv.KERNELS:
+        raise ValueError(f"{source}: unknown kernel '{kernel}'; use one of {cv.KERNELS}.")
+    if role is not None and role not in cv.ROLES:
+        raise ValueError(f"{source}: unknown role '{role}'; use one of {cv.ROLES}.")
+    empty = len(gset) == 0
+    if empty:  # Mitsuba's ellipsoids cannot hold 0 primitives: one invisible placeholder, skipped by the integrator
+        gset = GaussianSet.from_activated(np.zeros((1, 3)), 1e-3, opacities=1e-6, sh_degree=gset.sh_degree)
+    arrays = gset.to_mitsuba(kernel, min_shell_ratio)
+    desc = {"type": "ellipsoids", "extent": float(extent)}
+    if shape_id:
+        desc["id"] = shape_id
+    desc.update({k: mi.TensorXf(v) for k, v in arrays.items()})
+    shape = mi.load_dict(desc)
+    SET_INFO[id(shape)] = SetInfo(role, kernel, empty, source, min_shell_ratio, shape)
+    return shape
+
+
+def _factory(props):
+    sid = props.id()
+    role = props.get("role", None)
+    source = f"glint_gaussians '{sid or role or '?'}'"
+    gset = gaussian_set_from_props(props, source)
+    return make_shape(gset, kernel=props.get("kernel", "surfel"), role=role, shape_id=sid or (role or ""),
+                      extent=props.get("extent", DEFAULT_EXTENT), min_shell_ratio=props.get("min_shell_ratio", 0.3),
+                      source=source)
+
+
+def register() -> None:
+    mi.register_shape("glint_gaussians", _factory)
