@@ -65,7 +65,7 @@ class GaussianSet:
         for f in dataclasses.fields(self):
             arr = getattr(self, f.name)
             if not np.all(np.isfinite(arr)):
-                bad = int(np.argwhere(~np.isfinite(arr.reshape(arr.shape[0], -1)).any(1))[0, 0])
+                bad = int(np.argwhere((~np.isfinite(arr.reshape(arr.shape[0], -1))).any(1))[0, 0])
                 raise GaussianDataError(f"{source}: field '{f.name}' has NaN/Inf (first at Gaussian {bad}); "
                                         f"remove or re-initialise those Gaussians.")
         return self

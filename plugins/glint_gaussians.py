@@ -77,15 +77,15 @@ def _tensor(props, name, source, width=None):
 
 def gaussian_set_from_props(props, source: str) -> GaussianSet:
     """The GaussianSet described by a shape's properties (file or tensors)."""
-    if props.has_property("filename"):
-        return GaussianSet.load_ply(mi.Thread.thread().file_resolver().resolve(props.get("filename")))
-    if props.has_property("data"):
+    if ("filename" in props):
+        return GaussianSet.load_ply(str(mi.Thread.thread().file_resolver().resolve(props.get("filename"))))
+    if ("data" in props):
         data = _tensor(props, "data", source, 10)
         centers, scales, quats = data[:, :3], data[:, 3:6], data[:, 6:10]
-    elif props.has_property("centers"):
+    elif ("centers" in props):
         centers = _tensor(props, "centers", source, 3)
-        scales = _tensor(props, "scales", source, 3) if props.has_property("scales") else np.full_like(centers, 0.01)
-        quats = _tensor(props, "quaternions", source, 4) if props.has_property("quaternions") else None
+        scales = _tensor(props, "scales", source, 3) if ("scales" in props) else np.full_like(centers, 0.01)
+        quats = _tensor(props, "quaternions", source, 4) if ("quaternions" in props) else None
     else:
         raise GaussianDataError(f"{source}: give 'filename' (a 3DGS .ply) or 'centers' (+ scales, quaternions, ...) "
                                 f"or 'data' (N x 10).")
@@ -99,7 +99,7 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
         raise GaussianDataError(f"{source}: property 'scales' must be > 0 (standard deviations in metres).")
 
     def column(name, default):
-        if not props.has_property(name):
+        if not (name in props):
             return None
         arr = _tensor(props, name, source, 1)
         if len(arr) != n:
@@ -109,7 +109,7 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
         return arr[:, 0]
 
     sh = None
-    if props.has_property("sh_coeffs"):
+    if ("sh_coeffs" in props):
         raw = np.asarray(props.get("sh_coeffs"), np.float64)
         raw = raw.reshape(n, -1) if n else raw.reshape(0, 3)
         try:

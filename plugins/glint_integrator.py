@@ -18,6 +18,10 @@ and the same transport as a first-order reference on mesh scenes with real glass
  * - reflect_min, transmit_min
    - |float|
    - Per-ray thresholds of ``auto``. (Default: 0.05, just above F0 = 0.04, and 1e-3)
+ * - detach_depth
+   - |bool|
+   - Detach D_I where it places the secondary rays' origin x_I, as the paper does (gradients then reach the
+     interface through its normal and weights only). (Default: true)
  * - max_order
    - |int|
    - 1: first order (the paper). 2: adds the release's second-surface reflection: the transmitted ray's own
@@ -132,6 +136,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         if not self.ior > 1.0:
             raise ValueError(f"glint: 'ior' must be > 1 (got {self.ior}).")
         self.f0 = ((1.0 - self.ior) / (1.0 + self.ior)) ** 2
+        self.detach_depth = bool(props.get("detach_depth", True))
         self.max_order = int(props.get("max_order", 1))
         if self.max_order not in (1, 2):
             raise ValueError(f"glint: 'max_order' must be 1 or 2 (got {self.max_order}).")
@@ -297,11 +302,16 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         C, A, Dt = mi.Color3f(0.0), mi.Float(0.0), mi.Float(0.0)
         N, B, Tau = mi.Vector3f(0.0), mi.Float(0.0), mi.Float(0.0)
         hits = mi.UInt32(0)
+        last0, last1 = mi.UInt32(0xFFFFFFFF), mi.UInt32(0xFFFFFFFF)
+        step = mi.Float(1.0)
         active = mi.Bool(active)
         while dr.hint(active, mode="evaluated" if ad else "symbolic", label=f"glint {gs.role}"):
             pi = gs.scene.ray_intersect_preliminary(mi.Ray3f(o, dd), coherent=False, active=active)
             hit = active & pi.is_valid()
-            alpha, t, n, c, beta, tau = self._eval_kernel(gs, pi.prim_index, o0, d, hit)
+            # Just past a shell entry the float32 shell test can report the same primitive again: each Gaussian
+            # counts once per pass (the last two are remembered) and the step grows until the ray leaves the band.
+            fresh = hit & (pi.prim_index != last0) & (pi.prim_index != last1)
+            alpha, t, n, c, beta, tau = self._eval_kernel(gs, pi.prim_index, o0, d, fresh)
             w = T * alpha
             C += w * c
             A += w
@@ -311,7 +321,10 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             Tau += w * tau
             T *= 1.0 - alpha
             p = o + dd * pi.t
-            o = dr.select(hit, p + dd * _ray_epsilon(p), o)
+            o = dr.select(hit, p + dd * (_ray_epsilon(p) * step), o)
+            step = dr.select(hit & ~fresh, step * 4.0, 1.0)
+            last1 = dr.select(fresh, last0, last1)
+            last0 = dr.select(fresh, pi.prim_index, last0)
             hits += 1
             active = hit & (T > self.transmittance_min) & (hits < self.max_hits)
         return Composite(C, A, Dt, N, B, Tau)
@@ -344,7 +357,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             ks = dr.select(do_r | (refl is None), ks, 0.0)
             kt = dr.select(do_t | (trans is None), kt, 0.0)
 
-        x_i = o + dr.detach(I.depth) * d
+        x_i = o + (dr.detach(I.depth) if self.detach_depth else I.depth) * d
         cR = cT = mi.Color3f(0.0)
         if refl is not None:
             cR = self.composite(refl, x_i, reflect(d, n_hat), do_r, ad).C
@@ -353,7 +366,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             cT = Tr.C
             if self.max_order == 2 and refl is not None:
                 # The release's second-surface reflection, split by the transmitted ray's own specular weight.
-                x_t = x_i + dr.detach(Tr.depth) * d
+                x_t = x_i + (dr.detach(Tr.depth) if self.detach_depth else Tr.depth) * d
                 do_r2 = do_t & (Tr.A > 0) & (Tr.B > (1e-3 if self.auto else 0.0))
                 cR2 = self.composite(refl, x_t, reflect(d, Tr.normal), do_r2, ad).C
                 cT = (1.0 - Tr.B) * cT + Tr.B * cR2
@@ -375,8 +388,10 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
 
     @staticmethod
     def _is_glass(si):
+        # dielectric: delta transmission; thindielectric: delta reflection + a Null (straight-through) lobe
         flags = si.bsdf().flags()
-        return si.is_valid() & mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission)
+        thin = mi.has_flag(flags, mi.BSDFFlags.Null) & mi.has_flag(flags, mi.BSDFFlags.DeltaReflection)
+        return si.is_valid() & (mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission) | thin)
 
     @dr.syntax
     def _through_glass(self, scene, ray, active):
@@ -406,7 +421,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         bs_r, w_r = bsdf.sample(ctx, si, 0.0, mi.Point2f(0.5), glass)
         bs_t, w_t = bsdf.sample(ctx, si, 1.0 - 1e-6, mi.Point2f(0.5), glass)
         ok_r = glass & (bs_r.pdf > 0) & mi.has_flag(bs_r.sampled_type, mi.BSDFFlags.Reflection)
-        ok_t = glass & (bs_t.pdf > 0) & mi.has_flag(bs_t.sampled_type, mi.BSDFFlags.Transmission)
+        ok_t = glass & (bs_t.pdf > 0) & (mi.has_flag(bs_t.sampled_type, mi.BSDFFlags.Transmission)
+                                         | mi.has_flag(bs_t.sampled_type, mi.BSDFFlags.Null))
         F = dr.select(ok_r, bs_r.pdf, 0.0)
         ray_r = self._through_glass(scene, si.spawn_ray(si.to_world(bs_r.wo)), ok_r)
         ray_t = self._through_glass(scene, si.spawn_ray(si.to_world(bs_t.wo)), ok_t)

@@ -1,0 +1,38 @@
+"""Rendering helpers: split a ``glint`` render into named buffers and trace arbitrary ray batches."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def aov_layout(integrator) -> dict[str, slice]:
+    """Channel slices of a ``mi.render`` tensor made with ``integrator``: rgb first, then the AOV groups."""
+    from glint_mi_plugins.glint_integrator import AOV_GROUPS
+
+    layout, start = {"rgb": slice(0, 3)}, 3
+    for g in integrator.aov_groups:
+        n = len(AOV_GROUPS[g])
+        layout[g] = slice(start, start + n)
+        start += n
+    return layout
+
+
+def render_buffers(scene, spp: int | None = None, seed: int = 0, sensor: int = 0) -> dict[str, np.ndarray]:
+    """Render ``scene`` and return {name: [H, W, C] float32} for rgb and every AOV group of its glint integrator."""
+    import mitsuba as mi
+
+    img = np.array(mi.render(scene, spp=spp or 0, seed=seed, sensor=sensor))
+    integrator = scene.integrator()
+    if not hasattr(integrator, "aov_groups"):
+        return {"rgb": img[..., :3]}
+    return {name: img[..., sl] for name, sl in aov_layout(integrator).items()}
+
+
+def camera_rays(sensor, pixels: np.ndarray):
+    """Rays through pixel centres ``pixels`` [M, 2] (x, y) of ``sensor``; returns (mi.Ray3f, forward Vector3f)."""
+    import mitsuba as mi
+
+    size = np.array(sensor.film().crop_size(), dtype=np.float64)
+    uv = (np.asarray(pixels, np.float64) + 0.5) / size
+    ray, _ = sensor.sample_ray(0.0, 0.0, mi.Point2f(mi.Float(uv[:, 0]), mi.Float(uv[:, 1])), mi.Point2f(0.5))
+    forward = mi.Vector3f(sensor.world_transform() @ mi.Vector3f(0, 0, 1))
+    return mi.Ray3f(ray), forward

@@ -1,0 +1,44 @@
+"""Shared fixtures: the Mitsuba variant (with plugins) and small Gaussian scenes."""
+import numpy as np
+import pytest
+
+import glint_mi
+
+glint_mi.set_variant()
+
+import drjit as dr  # noqa: E402
+import mitsuba as mi  # noqa: E402
+
+from glint_mi.gaussians import GaussianSet  # noqa: E402
+from glint_mi_plugins.glint_gaussians import make_shape  # noqa: E402
+
+
+def random_set(rng, n, center=(0, 0, 0), spread=(1, 1, 0.2), scale=(0.1, 0.3), **kw):
+    kw.setdefault("opacities", rng.uniform(0.3, 0.9, n))
+    kw.setdefault("colors", rng.uniform(0, 1, (n, 3)))
+    return GaussianSet.from_activated(np.asarray(center) + rng.uniform(-1, 1, (n, 3)) * spread,
+                                      rng.uniform(*scale, (n, 3)), rng.normal(size=(n, 4)), **kw)
+
+
+def make_integrator(sets: dict, kernels=None, shape_kw=None, **props):
+    kernels = kernels or {}
+    desc = {"type": "glint", **props}
+    for role, s in sets.items():
+        desc[role] = make_shape(s, kernel=kernels.get(role, "surfel"), role=role, **(shape_kw or {}))
+    return mi.load_dict(desc)
+
+
+def rays(origins, directions):
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = np.asarray(directions, np.float64).reshape(-1, 3)
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    return mi.Ray3f(mi.Point3f(*[mi.Float(o[:, i]) for i in range(3)]), mi.Vector3f(*[mi.Float(d[:, i]) for i in range(3)]))
+
+
+def to_np(x):
+    return np.array(x)
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)
