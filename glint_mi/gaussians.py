@@ -123,13 +123,13 @@ class GaussianSet:
         ``data`` [N,10] holds centre, *shell* scales and (x,y,z,w) quaternion: the bounding shell Mitsuba's BVH
         intersects. Its scales are the kernel scales widened so that no axis is thinner than ``min_shell_ratio``
         times the largest (Mitsuba's float32 ray/ellipsoid test loses hits on flat shells, see README "Limits").
-        ``kernel_scales`` [N,3] are the true standard deviations the integrator evaluates (a surfel's third is 0).
+        ``kernel_scales`` [N,3] are the standard deviations the integrator evaluates (a surfel ignores the third, which
+        is kept so that files round-trip).
         """
         a = self.activated()
-        ks = a["scales"].copy()
-        if kernel == "surfel":
-            ks[:, 2] = 0.0
-        smax = np.max(ks, axis=1, keepdims=True) if len(self) else np.zeros((0, 1))
+        ks = a["scales"]
+        axes = ks[:, :2] if kernel == "surfel" else ks
+        smax = np.max(axes, axis=1, keepdims=True) if len(self) else np.zeros((0, 1))
         shell = np.maximum(ks, min_shell_ratio * smax)
         data = np.concatenate([a["means"], shell, a["quats_xyzw"]], axis=1)
         out = {
@@ -144,12 +144,12 @@ class GaussianSet:
 
     @classmethod
     def from_mitsuba(cls, arrays: dict[str, np.ndarray], kernel: str = "surfel") -> "GaussianSet":
-        """Inverse of :meth:`to_mitsuba` (up to float rounding of the activations)."""
+        """Inverse of :meth:`to_mitsuba`, up to float32 rounding of the activations (log(exp(x)) is not always x)."""
         data = np.asarray(arrays["data"], np.float64).reshape(-1, 10)
         n = len(data)
         ks = np.asarray(arrays.get("kernel_scales", data[:, 3:6]), np.float64).reshape(n, 3).copy()
         if kernel == "surfel":  # keep the file loadable by 3DGS viewers: a thin but finite third axis
-            ks[:, 2] = np.maximum(ks[:, 2], 1e-3 * ks[:, :2].max(axis=1, initial=0.0) + 1e-12)
+            ks[:, 2] = np.maximum(ks[:, 2], 1e-6 * ks[:, :2].max(axis=1, initial=0.0) + 1e-12)
         get = lambda k, d: np.asarray(arrays[k], np.float64).reshape(n) if k in arrays else np.full(n, d)
         return cls(means=data[:, :3], log_scales=np.log(ks), quats_wxyz=cv.xyzw_to_wxyz(data[:, 6:10]),
                    logit_opacity=cv.logit(get("opacities", 0.5)),

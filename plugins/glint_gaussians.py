@@ -78,7 +78,7 @@ def _tensor(props, name, source, width=None):
 def gaussian_set_from_props(props, source: str) -> GaussianSet:
     """The GaussianSet described by a shape's properties (file or tensors)."""
     if ("filename" in props):
-        return GaussianSet.load_ply(str(mi.Thread.thread().file_resolver().resolve(props.get("filename"))))
+        return GaussianSet.load_ply(str(mi.file_resolver().resolve(props.get("filename"))))
     if ("data" in props):
         data = _tensor(props, "data", source, 10)
         centers, scales, quats = data[:, :3], data[:, 3:6], data[:, 6:10]
@@ -141,6 +141,24 @@ def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = Non
     shape = mi.load_dict(desc)
     SET_INFO[id(shape)] = SetInfo(role, kernel, empty, source, min_shell_ratio, shape)
     return shape
+
+
+PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
+
+
+def to_gaussian_set(shape) -> GaussianSet:
+    """The current parameters of a glint_gaussians shape (e.g. after optimisation) as a raw GaussianSet."""
+    meta = info(shape)
+    if meta.empty:
+        return GaussianSet.empty()
+    params = mi.traverse(shape)
+    arrays = {k: np.array(params[k], dtype=np.float64).ravel() for k in PARAM_KEYS if k in params}
+    return GaussianSet.from_mitsuba(arrays, kernel=meta.kernel)
+
+
+def save_ply(shape, path) -> "os.PathLike":
+    """Write a shape's current Gaussians as a standard 3DGS .ply with ``specular``/``transparency`` (atomic)."""
+    return to_gaussian_set(shape).save_ply(path)
 
 
 def _factory(props):

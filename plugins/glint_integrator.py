@@ -18,6 +18,11 @@ and the same transport as a first-order reference on mesh scenes with real glass
  * - reflect_min, transmit_min
    - |float|
    - Per-ray thresholds of ``auto``. (Default: 0.05, just above F0 = 0.04, and 1e-3)
+ * - gradient
+   - |string|
+   - Reverse-mode method: ``replay`` (default; path replay, memory independent of the number of hits) or ``ad``
+     (plain Dr.Jit AD through evaluated loops; memory grows with rays x hits; the reference the replay is tested
+     against). Forward-mode AD always uses ``ad``.
  * - detach_depth
    - |bool|
    - Detach D_I where it places the secondary rays' origin x_I, as the paper does (gradients then reach the
@@ -55,9 +60,10 @@ split by its own exact Fresnel into one mirror ray and one transmitted ray (stra
 solid glass); each continues *through* further glass to the first opaque surface, whose radiance comes from
 Mitsuba's ``path`` integrator. Non-glass pixels are plain ``path`` samples. Primal only.
 
-Gradients: every AD mode evaluates the same code with Dr.Jit AD through evaluated loops (memory grows with
-rays x hits; measured in ``benchmarks/bench_integrator.py``). Ray/shell intersections are detached; kernels,
-compositing, Fresnel weights and the reflected direction are differentiated.
+Gradients: reverse mode replays every pass hit by hit in symbolic loops (constant memory, see :meth:`backward`);
+forward mode and ``gradient = ad`` run plain Dr.Jit AD through evaluated loops. Ray/shell intersections are
+detached; kernels, compositing, Fresnel weights, the reflected direction (hence interface normals) and every AOV are
+differentiated.
 """
 from __future__ import annotations
 
@@ -95,15 +101,61 @@ class GaussianSetRef:
 
 
 class Composite:
-    """Accumulators of one alpha-compositing pass (front to back)."""
+    """Accumulators of one alpha-compositing pass: sums over hits of w_i * (c, 1, t, n, beta, tau).
 
-    def __init__(self, C, A, Dt, N, B, Tau):
-        self.C, self.A, self.Dt, self.N, self.B, self.Tau = C, A, Dt, N, B, Tau
+    A Dr.Jit struct, so it can be loop state; arithmetic is field-wise.
+    """
+
+    DRJIT_STRUCT = {"C": mi.Color3f, "A": mi.Float, "Dt": mi.Float, "N": mi.Vector3f, "B": mi.Float, "Tau": mi.Float}
+    FIELDS = tuple(DRJIT_STRUCT)
+
+    def __init__(self, C=None, A=None, Dt=None, N=None, B=None, Tau=None):
+        self.C = mi.Color3f(0.0) if C is None else C
+        self.A = mi.Float(0.0) if A is None else A
+        self.Dt = mi.Float(0.0) if Dt is None else Dt
+        self.N = mi.Vector3f(0.0) if N is None else N
+        self.B = mi.Float(0.0) if B is None else B
+        self.Tau = mi.Float(0.0) if Tau is None else Tau
 
     @staticmethod
-    def zeros(n=1):
-        z = lambda t: dr.zeros(t, n)
-        return Composite(z(mi.Color3f), z(mi.Float), z(mi.Float), z(mi.Vector3f), z(mi.Float), z(mi.Float))
+    def zeros():
+        return Composite()
+
+    @staticmethod
+    def of_hit(w, t, n, c, beta, tau):
+        return Composite(w * c, mi.Float(w), w * t, w * n, w * beta, w * tau)
+
+    def map(self, fn, other=None):
+        if other is None:
+            return Composite(*(fn(getattr(self, f)) for f in self.FIELDS))
+        return Composite(*(fn(getattr(self, f), getattr(other, f)) for f in self.FIELDS))
+
+    def __add__(self, other):
+        return self.map(lambda a, b: a + b, other)
+
+    def __sub__(self, other):
+        return self.map(lambda a, b: a - b, other)
+
+    def scaled(self, s):
+        return self.map(lambda a: a * s)
+
+    def detached(self):
+        return self.map(dr.detach)
+
+    def leaf(self):
+        """A detached copy with gradients enabled (an AD input for the shading head)."""
+        c = self.detached()
+        for f in self.FIELDS:
+            dr.enable_grad(getattr(c, f))
+        return c
+
+    def grad(self):
+        return self.map(dr.grad)
+
+    def dot(self, other):
+        """sum over fields of <self.f, other.f> per ray (adjoint . value)."""
+        return (dr.dot(self.C, other.C) + self.A * other.A + self.Dt * other.Dt + dr.dot(self.N, other.N)
+                + self.B * other.B + self.Tau * other.Tau)
 
     @property
     def depth(self):  # expected distance along the ray
@@ -123,6 +175,30 @@ def reflect(d, n):
     return d - 2.0 * dr.dot(d, n) * n
 
 
+def _adjoint_dot(out: dict, adjoints: dict):
+    """sum_k <adjoints[k], out[k]> per ray, over rgb and AOV groups (tuples are dotted entry-wise)."""
+    total = mi.Float(0.0)
+    for key, adj in adjoints.items():
+        value = out[key]
+        pairs = zip(adj, value) if isinstance(value, tuple) else [(adj, value)]
+        for a, v in pairs:
+            total += dr.dot(a, v) if dr.size_v(v) == 3 else a * v
+    return total
+
+
+def _group_value(group: str, vals: list):
+    """Per-channel AOV floats -> the structured value of that group in trace()'s output."""
+    if group in ("depth", "transparency", "alpha"):
+        return vals[0]
+    if group == "normal":
+        return mi.Vector3f(*vals)
+    if group == "weights":
+        return tuple(vals)
+    if group == "trans_direct":
+        return (mi.Color3f(*vals[0:3]), vals[3], mi.Vector3f(*vals[4:7]), vals[7])
+    return mi.Color3f(*vals)
+
+
 def _ray_epsilon(p):
     """Origin offset after a hit: ~8 float32 ulps of the coordinates, at least 1e-6 m (stable from 1e-3 to 1e4 m)."""
     return dr.maximum(1e-6, dr.max(dr.abs(p)) * 1e-6)
@@ -137,6 +213,9 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             raise ValueError(f"glint: 'ior' must be > 1 (got {self.ior}).")
         self.f0 = ((1.0 - self.ior) / (1.0 + self.ior)) ** 2
         self.detach_depth = bool(props.get("detach_depth", True))
+        self.gradient = str(props.get("gradient", "replay"))
+        if self.gradient not in ("replay", "ad"):
+            raise ValueError(f"glint: 'gradient' must be 'replay' or 'ad' (got '{self.gradient}').")
         self.max_order = int(props.get("max_order", 1))
         if self.max_order not in (1, 2):
             raise ValueError(f"glint: 'max_order' must be 1 or 2 (got {self.max_order}).")
@@ -229,6 +308,44 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             aovs += self._aov_values(g, out)
         return out["rgb"], mi.Bool(True), aovs, None
 
+    def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
+        if self.mesh_mode:
+            raise RuntimeError("glint: mesh mode (no Gaussian sets) renders references only; it has no gradients.")
+        if self.gradient == "ad":
+            return super().render_backward(scene, params, grad_in, sensor, seed, spp)
+        if isinstance(sensor, int):
+            sensor = scene.sensors()[sensor]
+        film = sensor.film()
+        with dr.suspend_grad():
+            sampler, spp = self.prepare(sensor, seed, spp, self.aov_names())
+            ray, weight, pos = self.sample_rays(scene, sensor, sampler)
+            # The splat + develop steps are linear: differentiating them at unit values gives each sample's adjoint.
+            with dr.resume_grad():
+                L = dr.full(mi.Spectrum, 1.0, dr.width(ray))
+                aovs = [dr.full(mi.Float, 1.0, dr.width(ray)) for _ in self.aov_names()]
+                dr.enable_grad(L, aovs)
+                block = film.create_block()
+                block.set_coalesce(block.coalesce() and spp >= 4)
+                mi.ad.integrators.common.ADIntegrator._splat_to_block(block, film, pos, value=L * weight, weight=1.0, alpha=1.0,
+                                     aovs=[a * weight[0] for a in aovs], wavelengths=ray.wavelengths)
+                film.put_block(block)
+                image = film.develop()
+                dr.set_grad(image, grad_in)
+                dr.enqueue(dr.ADMode.Backward, image)
+                dr.traverse(dr.ADMode.Backward)
+                dL, daovs = dr.grad(L), dr.grad(aovs)
+            film.clear()
+            ray = mi.Ray3f(dr.detach(ray))
+            out = self.trace(ray, mi.Bool(True), need=set(self.aov_groups))
+            adjoints, k = {"rgb": dL}, 0
+            for g in self.aov_groups:
+                n = len(AOV_GROUPS[g])
+                vals = daovs[k:k + n]
+                k += n
+                adjoints[g] = _group_value(g, vals)
+            self.backward(ray, mi.Bool(True), out, adjoints)
+            dr.eval()
+
     def _aov_values(self, group, out):
         v = out[group]
         if group == "depth":
@@ -294,13 +411,22 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 dr.select(ok, beta, 0.0), dr.select(ok, tau, 0.0))
 
     @dr.syntax
-    def composite(self, gs: GaussianSetRef, o0, d, active, ad: bool) -> Composite:
-        """Front-to-back alpha compositing of one set along rays (o0, d); d may carry gradients."""
+    def march(self, gs: GaussianSetRef, o0, d, active, ad: bool = False, total: Composite = None,
+              adjoint: Composite = None, ray_grad: bool = False):
+        """Front-to-back alpha compositing of one set along rays (o0, d).
+
+        Forward (``adjoint`` None): returns the :class:`Composite`; with ``ad`` the loop is evaluated so that plain
+        Dr.Jit AD runs through it (d and o0 may carry gradients).
+        Replay (``adjoint`` given, ``total`` = the forward Composite): re-traces the same hits and back-propagates the
+        adjoint of the totals into the set's parameters hit by hit, in constant memory. Returns the adjoints of
+        the ray origin and direction (zero unless ``ray_grad``).
+        """
+        replay = adjoint is not None
         o = mi.Point3f(dr.detach(o0))
         dd = mi.Vector3f(dr.detach(d))
         T = mi.Float(1.0)
-        C, A, Dt = mi.Color3f(0.0), mi.Float(0.0), mi.Float(0.0)
-        N, B, Tau = mi.Vector3f(0.0), mi.Float(0.0), mi.Float(0.0)
+        acc = Composite()
+        d_o, d_d = mi.Vector3f(0.0), mi.Vector3f(0.0)
         hits = mi.UInt32(0)
         last0, last1 = mi.UInt32(0xFFFFFFFF), mi.UInt32(0xFFFFFFFF)
         step = mi.Float(1.0)
@@ -311,14 +437,9 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             # Just past a shell entry the float32 shell test can report the same primitive again: each Gaussian
             # counts once per pass (the last two are remembered) and the step grows until the ray leaves the band.
             fresh = hit & (pi.prim_index != last0) & (pi.prim_index != last1)
-            alpha, t, n, c, beta, tau = self._eval_kernel(gs, pi.prim_index, o0, d, fresh)
-            w = T * alpha
-            C += w * c
-            A += w
-            Dt += w * t
-            N += w * n
-            B += w * beta
-            Tau += w * tau
+            acc, alpha, g_o, g_d = self._hit(gs, pi.prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad)
+            d_o += g_o
+            d_d += g_d
             T *= 1.0 - alpha
             p = o + dd * pi.t
             o = dr.select(hit, p + dd * (_ray_epsilon(p) * step), o)
@@ -327,19 +448,35 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             last0 = dr.select(fresh, pi.prim_index, last0)
             hits += 1
             active = hit & (T > self.transmittance_min) & (hits < self.max_hits)
-        return Composite(C, A, Dt, N, B, Tau)
+        return (d_o, d_d) if replay else acc
+
+    def _hit(self, gs, prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad):
+        """One hit: forward, add its weighted features to ``acc``; replay (``adjoint`` given), also back-propagate:
+        d(total)/d(params of this hit) = T d(alpha f) - S d(alpha) / (1 - alpha), with the suffix
+        S = total - prefix (everything behind this hit, all of it scaled by 1 - alpha).
+        Returns (new acc, alpha (detached in replay), origin adjoint, direction adjoint)."""
+        zero = mi.Vector3f(0.0)
+        if adjoint is None:
+            alpha, t, n, c, beta, tau = self._eval_kernel(gs, prim_index, o0, d, fresh)
+            return acc + Composite.of_hit(T * alpha, t, n, c, beta, tau), alpha, zero, zero
+        with dr.resume_grad():
+            o_l, d_l = mi.Point3f(dr.detach(o0)), mi.Vector3f(dr.detach(d))
+            if ray_grad:
+                dr.enable_grad(o_l, d_l)
+            alpha, t, n, c, beta, tau = self._eval_kernel(gs, prim_index, o_l, d_l, fresh)
+            alpha_d = dr.detach(alpha)
+            mine = Composite.of_hit(T * alpha, t, n, c, beta, tau)
+            prefix = acc + mine.detached()
+            suffix = (total - prefix).detached()
+            Lo = mine + suffix.scaled((1.0 - alpha) / (1.0 - alpha_d))
+            dr.backward_from(dr.select(fresh, adjoint.dot(Lo), 0.0), flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+            g_o = mi.Vector3f(dr.grad(o_l)) if ray_grad else zero
+            g_d = dr.grad(d_l) if ray_grad else zero
+        return prefix, alpha_d, g_o, g_d
 
     # ------------------------------------------------------ Gaussian mode
-    def trace(self, ray: mi.Ray3f, active, ad: bool = False, need=frozenset(), forward=None) -> dict:
-        """All buffers of the GLINT image model for a batch of rays (Dr.Jit arrays, differentiable when ``ad``).
-
-        Returns a dict with ``rgb`` (Color3f) and the AOV groups in ``need`` (see AOV_GROUPS), plus the raw pieces
-        ``kd ks kt`` and ``distance`` (expected distance along the ray).
-        """
-        forward = self._forward if forward is None else forward
-        o, d = ray.o, ray.d
-        zero = Composite.zeros()
-        I = self.composite(self.sets["interface"], o, d, active, ad) if self.active_set("interface") else zero
+    def _weights(self, I: Composite, d, active):
+        """Fresnel weights and which secondary rays to trace; returns (kd, ks, kt, do_r, do_t)."""
         has = I.A > 0
         n_hat = I.normal
         cos = dr.select(dr.squared_norm(n_hat) > 0, dr.maximum(0.0, dr.dot(-d, n_hat)), 1.0)
@@ -348,37 +485,119 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         kd = (1.0 - ks) * (1.0 - I.Tau)
         kt = (1.0 - ks) * I.Tau
         ks, kt, kd = dr.select(has, ks, 0.0), dr.select(has, kt, 0.0), dr.select(has, kd, 1.0)
-
         refl, trans = self.active_set("reflection"), self.active_set("transmission")
-        do_r = active & has & (ks > (self.reflect_min if self.auto else 0.0)) & (refl is not None)
-        do_t = active & has & (kt > (self.transmit_min if self.auto else 0.0)) & (trans is not None)
+        do_r = mi.Bool(dr.detach(active & has & (ks > (self.reflect_min if self.auto else 0.0)))) & (refl is not None)
+        do_t = mi.Bool(dr.detach(active & has & (kt > (self.transmit_min if self.auto else 0.0)))) & (trans is not None)
         if self.auto:  # skipped weight goes to the diffuse term, keeping k_d + k_s + k_t = 1
             kd = kd + dr.select(~do_r & (refl is not None), ks, 0.0) + dr.select(~do_t & (trans is not None), kt, 0.0)
             ks = dr.select(do_r | (refl is None), ks, 0.0)
             kt = dr.select(do_t | (trans is None), kt, 0.0)
+        return kd, ks, kt, do_r, do_t
 
-        x_i = o + (dr.detach(I.depth) if self.detach_depth else I.depth) * d
-        cR = cT = mi.Color3f(0.0)
-        if refl is not None:
-            cR = self.composite(refl, x_i, reflect(d, n_hat), do_r, ad).C
-        if trans is not None:
-            Tr = self.composite(trans, x_i, d, do_t, ad)
-            cT = Tr.C
-            if self.max_order == 2 and refl is not None:
-                # The release's second-surface reflection, split by the transmitted ray's own specular weight.
-                x_t = x_i + (dr.detach(Tr.depth) if self.detach_depth else Tr.depth) * d
-                do_r2 = do_t & (Tr.A > 0) & (Tr.B > (1e-3 if self.auto else 0.0))
-                cR2 = self.composite(refl, x_t, reflect(d, Tr.normal), do_r2, ad).C
-                cT = (1.0 - Tr.B) * cT + Tr.B * cR2
-        rgb = kd * I.C + ks * cR + kt * cT
+    def _secondary(self, I: Composite, o, d):
+        """Origin x_I and mirror direction of the secondary rays (the transmitted ray keeps d)."""
+        depth = dr.detach(I.depth) if self.detach_depth else I.depth
+        return o + depth * d, reflect(d, I.normal)
 
-        out = {"rgb": mi.Spectrum(rgb), "kd": kd, "ks": ks, "kt": kt, "distance": I.depth,
-               "depth": I.depth * dr.dot(d, forward), "normal": n_hat, "transparency": I.Tau,
-               "interface": I.C, "reflection": cR, "transmission": cT, "alpha": I.A, "weights": (kd, ks, kt)}
-        if "trans_direct" in need:
-            D = self.composite(trans, o, d, active, ad) if trans is not None else zero
-            out["trans_direct"] = (D.C, D.depth * dr.dot(d, forward), D.normal, D.A)
-        return out
+    def _second_order(self, x_i, Tr: Composite, d, do_t):
+        """The release's second-surface reflection ray, from the transmission set's expected depth."""
+        depth = dr.detach(Tr.depth) if self.detach_depth else Tr.depth
+        do_r2 = mi.Bool(dr.detach(do_t & (Tr.A > 0) & (Tr.B > (1e-3 if self.auto else 0.0))))
+        return x_i + depth * d, reflect(d, Tr.normal), do_r2
+
+    def _combine(self, I, R, Tr, R2, D, weights, d, forward, order2: bool) -> dict:
+        kd, ks, kt = weights[:3]
+        cT = (1.0 - Tr.B) * Tr.C + Tr.B * R2.C if order2 else Tr.C
+        rgb = kd * I.C + ks * R.C + kt * cT
+        z = dr.dot(d, forward)
+        return {"rgb": mi.Spectrum(rgb), "kd": kd, "ks": ks, "kt": kt, "distance": I.depth,
+                "depth": I.depth * z, "normal": I.normal, "transparency": I.Tau, "interface": I.C,
+                "reflection": R.C, "transmission": cT, "alpha": I.A, "weights": (kd, ks, kt),
+                "trans_direct": (D.C, D.depth * z, D.normal, D.A)}
+
+    def trace(self, ray: mi.Ray3f, active, ad: bool = False, need=frozenset(), forward=None) -> dict:
+        """All buffers of the GLINT image model for a batch of rays (Dr.Jit arrays; plain AD when ``ad``).
+
+        Returns ``rgb`` (Spectrum), the AOV groups of AOV_GROUPS (``trans_direct`` only if in ``need``, else zeros),
+        ``kd ks kt``, ``distance`` (expected distance along the ray) and ``_passes``, the per-set composites that
+        :meth:`backward` replays.
+        """
+        forward = self._forward if forward is None else forward
+        with dr.suspend_grad(when=not ad):  # a primal trace never records AD edges through its loops
+            o, d = ray.o, ray.d
+            active = mi.Bool(active)
+            refl, trans, intf = self.active_set("reflection"), self.active_set("transmission"), self.active_set("interface")
+            I = self.march(intf, o, d, active, ad) if intf else Composite()
+            weights = self._weights(I, d, active)
+            x_i, d_r = self._secondary(I, o, d)
+            R = self.march(refl, x_i, d_r, weights[3], ad) if refl else Composite()
+            Tr = self.march(trans, x_i, d, weights[4], ad) if trans else Composite()
+            order2 = self.max_order == 2 and refl is not None and trans is not None
+            R2 = Composite()
+            if order2:
+                x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, weights[4])
+                R2 = self.march(refl, x_t, d_r2, do_r2, ad)
+            D = self.march(trans, o, d, active, ad) if (trans and "trans_direct" in need) else Composite()
+            out = self._combine(I, R, Tr, R2, D, weights, d, forward, order2)
+            out["_passes"] = (I, R, Tr, R2, D)
+            return out
+
+    def backward(self, ray: mi.Ray3f, active, out: dict, adjoints: dict, forward=None) -> None:
+        """Path-replay backward: accumulate into the sets' parameter gradients the derivative of
+        sum_k <adjoints[k], out[k]>, for ``out`` = :meth:`trace` (primal) of the same rays.
+
+        ``adjoints`` maps output names (rgb and AOV group names) to per-ray adjoints shaped like the outputs.
+        Memory is independent of the number of hits: every pass is re-traced in a symbolic loop.
+        """
+        forward = self._forward if forward is None else forward
+        o, d = mi.Point3f(dr.detach(ray.o)), mi.Vector3f(dr.detach(ray.d))
+        active = mi.Bool(active)
+        I, R, Tr, R2, D = out["_passes"]
+        refl, trans, intf = self.active_set("reflection"), self.active_set("transmission"), self.active_set("interface")
+        order2 = self.max_order == 2 and refl is not None and trans is not None
+        flags = dr.ADFlag.Default | dr.ADFlag.AllowNoGrad
+
+        # 1. the shading head: adjoints of every pass's totals
+        with dr.resume_grad():
+            leaves = [p.leaf() for p in (I, R, Tr, R2, D)]
+            Il, Rl, Trl, R2l, Dl = leaves
+            res = self._combine(Il, Rl, Trl, R2l, Dl, self._weights(Il, d, active), d, forward, order2)
+            dr.backward_from(_adjoint_dot(res, adjoints), flags=flags)
+            gI, gR, gTr, gR2, gD = [leaf.grad() for leaf in leaves]
+
+        weights = self._weights(I, d, active)
+        x_i, d_r = self._secondary(I, o, d)
+        g_xi = mi.Vector3f(0.0)
+        # 2. second-order reflection, then its ray's dependence on the transmission pass (and x_I)
+        if order2:
+            x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, weights[4])
+            g_xt, g_dr2 = self.march(refl, x_t, d_r2, do_r2, total=R2, adjoint=gR2, ray_grad=True)
+            with dr.resume_grad():
+                x_il, Trl = mi.Point3f(x_i), Tr.leaf()
+                dr.enable_grad(x_il)
+                x_tl, d_r2l, _ = self._second_order(x_il, Trl, d, weights[4])
+                dr.backward_from(dr.dot(g_xt, x_tl) + dr.dot(g_dr2, d_r2l), flags=flags)
+                gTr = gTr + Trl.grad()
+                g_xi += dr.grad(x_il)
+        # 3. transmission and reflection replays; their rays' origin/direction adjoints
+        if trans:
+            g_o, _ = self.march(trans, x_i, d, weights[4], total=Tr, adjoint=gTr, ray_grad=not self.detach_depth)
+            g_xi += g_o
+        g_dr = mi.Vector3f(0.0)
+        if refl:
+            g_o, g_dr = self.march(refl, x_i, d_r, weights[3], total=R, adjoint=gR, ray_grad=True)
+            g_xi += g_o
+        # 4. secondary rays -> interface totals (normal through the mirror direction, depth through x_I)
+        with dr.resume_grad():
+            Il = I.leaf()
+            x_il, d_rl = self._secondary(Il, o, d)
+            dr.backward_from(dr.dot(g_xi, x_il) + dr.dot(g_dr, d_rl), flags=flags)
+            gI = gI + Il.grad()
+        # 5. the camera-ray passes
+        if intf:
+            self.march(intf, o, d, active, total=I, adjoint=gI)
+        if trans and "trans_direct" in adjoints:
+            self.march(trans, o, d, active, total=D, adjoint=gD)
 
     # ----------------------------------------------------------- mesh mode
     def _path_tracer(self):
