@@ -1,9 +1,10 @@
 """Integrator speed, side by side in one run: glint vs Mitsuba's volprim_rf_basic on identical Gaussians.
 
-Prints a markdown table (and writes CSV to benchmarks/results/) of forward and forward+backward time per ray for
-1k/10k/50k Gaussians at two resolutions, the cost of each component, the no-glass scene in auto mode, and the peak
-memory of a gradient step. Targets (issue 2): interface-only / volprim <= 1.0, all three components <= 2.5x
-interface-only, no-glass auto <= 1.1x interface-only.
+Prints markdown tables (and writes CSV to benchmarks/results/) of forward and forward+backward time per ray for
+1k/10k/50k Gaussians at two resolutions, the cost of each component, the no-glass scene in auto mode, the replay vs
+plain-AD backward, and the peak memory of one gradient step (each in a fresh subprocess). Targets (issue 2):
+interface-only / volprim <= 1.0, all three components <= 2.5x interface-only, no-glass auto <= 1.1x interface-only.
+Dr.Jit's LLVM backend runs kernels asynchronously: every timing ends with dr.sync_thread().
 
     .venv/bin/python benchmarks/bench_integrator.py [--quick]
 """
@@ -11,7 +12,11 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
+import os
 import resource
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -58,9 +63,11 @@ def timed(scene, grad_key=None, reps=3):
         if grad_key:
             dr.backward(dr.sum(img, axis=None))
             dr.eval(dr.grad(params[grad_key]))
+            dr.sync_thread()
             dr.clear_grad(params[grad_key])
         else:
             dr.eval(img)
+            dr.sync_thread()
         times.append(time.perf_counter() - t)
     return float(np.median(times[1:]))
 
@@ -78,48 +85,84 @@ def volprim_scene(s, res):
                          "g": make_shape(s, kernel="ellipsoid", extent=3.0)})
 
 
+# volprim_rf_basic stops at transmittance 0.01 and has no alpha floor; the paper (our default) stops at 1e-4
+VOLPRIM_CUTOFFS = {"transmittance_min": 0.01, "alpha_min": 0.0, "alpha_max": 0.9999}
+
+
+def configs(n: int, res) -> dict:
+    """name -> (scene, key of a differentiable parameter) for n Gaussians per set."""
+    base = gaussians(n, 0)
+    refl, trans = gaussians(n, 1, glass=False), gaussians(n, 2, glass=False)
+    trans.means[:, 2] += 1.0
+    noglass = gaussians(n, 0, glass=False)
+    key = "integrator.interface.opacities"
+    three = {"interface": base, "reflection": refl, "transmission": trans}
+    return {
+        "volprim_rf_basic": lambda: (volprim_scene(base, res), "g.opacities"),
+        "glint interface only, volprim's cut-offs": lambda: (glint_scene({"interface": base}, res,
+                                                                          components="interface", **VOLPRIM_CUTOFFS), key),
+        "glint interface only": lambda: (glint_scene({"interface": base}, res, components="interface"), key),
+        "glint + reflection": lambda: (glint_scene({"interface": base, "reflection": refl}, res, components="all"), key),
+        "glint + transmission": lambda: (glint_scene({"interface": base, "transmission": trans}, res,
+                                                     components="all"), key),
+        "glint all three (all)": lambda: (glint_scene(three, res, components="all"), key),
+        "glint all three (auto)": lambda: (glint_scene(three, res), key),
+        "glint all three, gradient=ad": lambda: (glint_scene(three, res, components="all", gradient="ad"), key),
+        "no glass, auto (interface + reflection sets)": lambda: (glint_scene({"interface": noglass, "reflection": refl},
+                                                                             res), key),
+    }
+
+
+def memory_probe(name: str, n: int, res, what: str) -> None:
+    """Child process: peak RSS (MB) of a fresh process that renders once (``fwd``) or takes one gradient step."""
+    scene, key = configs(n, res)[name]()
+    timed(scene, key if what == "grad" else None, reps=1)
+    print(json.dumps({"peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="1k/10k and one resolution (a smoke run)")
+    ap.add_argument("--memory-probe", nargs=4, metavar=("CONFIG", "N", "WxH", "WHAT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.memory_probe:
+        name, n, res, what = args.memory_probe
+        return memory_probe(name, int(n), tuple(int(v) for v in res.split("x")), what)
     counts = [1000, 10000] if args.quick else [1000, 10000, 50000]
     resolutions = [(128, 96)] if args.quick else [(128, 96), (256, 192)]
     rows = []
     for n in counts:
-        base = gaussians(n, 0)
-        refl, trans = gaussians(n, 1, glass=False), gaussians(n, 2, glass=False)
-        trans.means[:, 2] += 1.0
-        noglass = gaussians(n, 0, glass=False)
         for res in resolutions:
             rays = res[0] * res[1]
-            cfg = {
-                "volprim_rf_basic": (volprim_scene(base, res), "g.opacities"),
-                "glint interface only": (glint_scene({"interface": base}, res, components="interface"),
-                                         "integrator.interface.opacities"),
-                "glint + reflection": (glint_scene({"interface": base, "reflection": refl}, res, components="all"),
-                                       "integrator.interface.opacities"),
-                "glint + transmission": (glint_scene({"interface": base, "transmission": trans}, res, components="all"),
-                                         "integrator.interface.opacities"),
-                "glint all three (all)": (glint_scene({"interface": base, "reflection": refl, "transmission": trans}, res,
-                                                      components="all"), "integrator.interface.opacities"),
-                "glint all three (auto)": (glint_scene({"interface": base, "reflection": refl, "transmission": trans},
-                                                       res), "integrator.interface.opacities"),
-                "no glass, auto (interface + reflection sets)": (
-                    glint_scene({"interface": noglass, "reflection": refl}, res), "integrator.interface.opacities"),
-            }
-            ref_f = ref_b = None
-            for name, (scene, key) in cfg.items():
+            cfg = configs(n, res)
+            if n > 10000 or res[0] > 128:  # the evaluated-loop reference is slow; one size shows the ratio
+                cfg.pop("glint all three, gradient=ad")
+            for name, build in cfg.items():
+                scene, key = build()
                 fwd = timed(scene)
                 bwd = timed(scene, key)
-                if name == "glint interface only":
-                    ref_f, ref_b = fwd, bwd
                 rows.append({"gaussians": n, "resolution": f"{res[0]}x{res[1]}", "config": name,
                              "forward_ms": 1e3 * fwd, "fwd_ns_per_ray": 1e9 * fwd / rays,
                              "grad_ms": 1e3 * bwd, "grad_ns_per_ray": 1e9 * bwd / rays})
+            ref = next(r for r in rows[-len(cfg):] if r["config"] == "glint interface only")
             for r in rows[-len(cfg):]:
-                r["fwd_vs_interface"] = r["forward_ms"] / (1e3 * ref_f)
-                r["grad_vs_interface"] = r["grad_ms"] / (1e3 * ref_b)
+                r["fwd_vs_interface"] = r["forward_ms"] / ref["forward_ms"]
+                r["grad_vs_interface"] = r["grad_ms"] / ref["grad_ms"]
             print(f"done {n} Gaussians at {res}", flush=True)
+    mem_rows = []
+    for name in ("volprim_rf_basic", "glint interface only, volprim's cut-offs", "glint interface only",
+                 "glint all three (all)", "glint all three, gradient=ad"):
+        for n, res in ((10000, (128, 96)), (10000, (256, 192))):
+            if "gradient=ad" in name and res[0] > 128:
+                continue
+            m = {}
+            for what in ("fwd", "grad"):
+                r = subprocess.run([sys.executable, __file__, "--memory-probe", name, str(n), f"{res[0]}x{res[1]}",
+                                    what], capture_output=True, text=True, check=True)
+                m[what] = json.loads(r.stdout.strip().splitlines()[-1])["peak_mb"]
+            mem_rows.append({"config": name, "gaussians": n, "resolution": f"{res[0]}x{res[1]}",
+                             "forward_peak_mb": m["fwd"], "gradient_peak_mb": m["grad"],
+                             "gradient_extra_mb": m["grad"] - m["fwd"]})
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     out = Path(__file__).parent / "results"
     out.mkdir(exist_ok=True)
@@ -133,8 +176,16 @@ def main():
         print(f"| {r['gaussians']} | {r['resolution']} | {r['config']} | {r['forward_ms']:.1f} | "
               f"{r['fwd_ns_per_ray']:.0f} | {r['fwd_vs_interface']:.2f} | {r['grad_ms']:.1f} | "
               f"{r['grad_vs_interface']:.2f} |")
-    print(f"\npeak RSS of the whole run: {peak_mb:.0f} MB  (machine: {mi.variant()}, "
-          f"{__import__('os').cpu_count()} cores)")
+    print("\n| config | Gaussians | res | peak RSS, forward (MB) | peak RSS, gradient step (MB) | extra (MB) |")
+    print("|---|---|---|---|---|---|")
+    for m in mem_rows:
+        print(f"| {m['config']} | {m['gaussians']} | {m['resolution']} | {m['forward_peak_mb']:.0f} | "
+              f"{m['gradient_peak_mb']:.0f} | {m['gradient_extra_mb']:.0f} |")
+    with open(out / "memory.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(mem_rows[0]))
+        w.writeheader()
+        w.writerows(mem_rows)
+    print(f"\npeak RSS of the timing process: {peak_mb:.0f} MB  (variant {mi.variant()}, {os.cpu_count()} cores)")
 
 
 if __name__ == "__main__":

@@ -553,6 +553,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         o, d = mi.Point3f(dr.detach(ray.o)), mi.Vector3f(dr.detach(ray.d))
         active = mi.Bool(active)
         I, R, Tr, R2, D = out["_passes"]
+        dr.eval(I, R, Tr, R2, D)  # one kernel for all totals (else each field would re-run its pass when detached)
         refl, trans, intf = self.active_set("reflection"), self.active_set("transmission"), self.active_set("interface")
         order2 = self.max_order == 2 and refl is not None and trans is not None
         flags = dr.ADFlag.Default | dr.ADFlag.AllowNoGrad
