@@ -108,8 +108,10 @@ def configs(n: int, res) -> dict:
         "glint all three (all)": lambda: (glint_scene(three, res, components="all"), key),
         "glint all three (auto)": lambda: (glint_scene(three, res), key),
         "glint all three, gradient=ad": lambda: (glint_scene(three, res, components="all", gradient="ad"), key),
-        "no glass, auto (interface + reflection sets)": lambda: (glint_scene({"interface": noglass, "reflection": refl},
-                                                                             res), key),
+        "no glass, auto (t = 0: transmission set never traced)": lambda: (
+            glint_scene({"interface": noglass, "transmission": trans}, res), key),
+        "no glass, auto, + reflection set (beta = 0, Fresnel only)": lambda: (
+            glint_scene({"interface": noglass, "transmission": trans, "reflection": refl}, res), key),
     }
 
 
@@ -117,25 +119,29 @@ def memory_probe(name: str, n: int, res, what: str) -> None:
     """Child process: peak RSS (MB) of a fresh process that renders once (``fwd``) or takes one gradient step."""
     scene, key = configs(n, res)[name]()
     timed(scene, key if what == "grad" else None, reps=1)
-    print(json.dumps({"peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+    # VmHWM belongs to this process image (ru_maxrss would include the parent's peak, inherited over fork/exec)
+    hwm = next(line for line in open("/proc/self/status") if line.startswith("VmHWM"))
+    print(json.dumps({"peak_mb": int(hwm.split()[1]) / 1024}))
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="1k/10k and one resolution (a smoke run)")
+    ap.add_argument("--tiny", action="store_true", help="500 Gaussians at 32x24, no memory probes (used by the tests)")
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results"), help="folder for the CSV files")
     ap.add_argument("--memory-probe", nargs=4, metavar=("CONFIG", "N", "WxH", "WHAT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.memory_probe:
         name, n, res, what = args.memory_probe
         return memory_probe(name, int(n), tuple(int(v) for v in res.split("x")), what)
-    counts = [1000, 10000] if args.quick else [1000, 10000, 50000]
-    resolutions = [(128, 96)] if args.quick else [(128, 96), (256, 192)]
+    counts = [500] if args.tiny else [1000, 10000] if args.quick else [1000, 10000, 50000]
+    resolutions = [(32, 24)] if args.tiny else [(128, 96)] if args.quick else [(128, 96), (256, 192)]
     rows = []
     for n in counts:
         for res in resolutions:
             rays = res[0] * res[1]
             cfg = configs(n, res)
-            if n > 10000 or res[0] > 128:  # the evaluated-loop reference is slow; one size shows the ratio
+            if n > 10000 or res[0] > 128 or args.tiny:  # the evaluated-loop reference is slow; one size shows it
                 cfg.pop("glint all three, gradient=ad")
             for name, build in cfg.items():
                 scene, key = build()
@@ -150,7 +156,7 @@ def main():
                 r["grad_vs_interface"] = r["grad_ms"] / ref["grad_ms"]
             print(f"done {n} Gaussians at {res}", flush=True)
     mem_rows = []
-    for name in ("volprim_rf_basic", "glint interface only, volprim's cut-offs", "glint interface only",
+    for name in () if args.tiny else ("volprim_rf_basic", "glint interface only, volprim's cut-offs", "glint interface only",
                  "glint all three (all)", "glint all three, gradient=ad"):
         for n, res in ((10000, (128, 96)), (10000, (256, 192))):
             if "gradient=ad" in name and res[0] > 128:
@@ -164,8 +170,8 @@ def main():
                              "forward_peak_mb": m["fwd"], "gradient_peak_mb": m["grad"],
                              "gradient_extra_mb": m["grad"] - m["fwd"]})
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    out = Path(__file__).parent / "results"
-    out.mkdir(exist_ok=True)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
     with open(out / "integrator.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
@@ -181,10 +187,11 @@ def main():
     for m in mem_rows:
         print(f"| {m['config']} | {m['gaussians']} | {m['resolution']} | {m['forward_peak_mb']:.0f} | "
               f"{m['gradient_peak_mb']:.0f} | {m['gradient_extra_mb']:.0f} |")
-    with open(out / "memory.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(mem_rows[0]))
-        w.writeheader()
-        w.writerows(mem_rows)
+    if mem_rows:
+        with open(out / "memory.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(mem_rows[0]))
+            w.writeheader()
+            w.writerows(mem_rows)
     print(f"\npeak RSS of the timing process: {peak_mb:.0f} MB  (variant {mi.variant()}, {os.cpu_count()} cores)")
 
 

@@ -49,7 +49,8 @@ and the same transport as a first-order reference on mesh scenes with real glass
    - |int|
    - Mesh mode: path depth of the ``path`` tracer that gives radiance beyond the glass. (Default: 64)
 
-Gaussian mode (any set present): alpha_i = min(0.99, o_i G_i), skipped below 1/255, stop at transmittance 1e-4;
+Gaussian mode (any set present): alpha_i = min(0.99, o_i G_i), skipped below 1/255, stop at transmittance 1e-4
+(secondary passes stop once k T < 1e-4, k their weight in the pixel: the same bound on missed radiance);
 interface pass -> colour c_I, alpha A_I, expected distance D_I, normal N_I, beta_I, t; Schlick F with
 cos = max(0, <-d, N_I>); k_s = clamp(beta + (1 - beta) F, F0, 1), k_d = (1 - k_s)(1 - t), k_t = (1 - k_s) t;
 reflection from x_I = o + detach(D_I) d along reflect(d, N_I) (normal attached); transmission from x_I along d;
@@ -412,8 +413,11 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
 
     @dr.syntax
     def march(self, gs: GaussianSetRef, o0, d, active, ad: bool = False, total: Composite = None,
-              adjoint: Composite = None, ray_grad: bool = False):
+              adjoint: Composite = None, ray_grad: bool = False, weight=None):
         """Front-to-back alpha compositing of one set along rays (o0, d).
+
+        ``weight`` (per ray, primal) is how much of this pass reaches the pixel: the pass stops once
+        weight * T < transmittance_min, the same bound on the missed radiance as the camera pass has.
 
         Forward (``adjoint`` None): returns the :class:`Composite`; with ``ad`` the loop is evaluated so that plain
         Dr.Jit AD runs through it (d and o0 may carry gradients).
@@ -422,6 +426,9 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         the ray origin and direction (zero unless ``ray_grad``).
         """
         replay = adjoint is not None
+        t_stop = mi.Float(self.transmittance_min)
+        if weight is not None:
+            t_stop = dr.minimum(self.transmittance_min / dr.maximum(dr.detach(weight), self.transmittance_min), 1.0)
         o = mi.Point3f(dr.detach(o0))
         dd = mi.Vector3f(dr.detach(d))
         T = mi.Float(1.0)
@@ -447,7 +454,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             last1 = dr.select(fresh, last0, last1)
             last0 = dr.select(fresh, pi.prim_index, last0)
             hits += 1
-            active = hit & (T > self.transmittance_min) & (hits < self.max_hits)
+            active = hit & (T > t_stop) & (hits < self.max_hits)
         return (d_o, d_d) if replay else acc
 
     def _hit(self, gs, prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad):
@@ -530,13 +537,14 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             I = self.march(intf, o, d, active, ad) if intf else Composite()
             weights = self._weights(I, d, active)
             x_i, d_r = self._secondary(I, o, d)
-            R = self.march(refl, x_i, d_r, weights[3], ad) if refl else Composite()
-            Tr = self.march(trans, x_i, d, weights[4], ad) if trans else Composite()
+            kd, ks, kt, do_r, do_t = weights
+            R = self.march(refl, x_i, d_r, do_r, ad, weight=ks) if refl else Composite()
+            Tr = self.march(trans, x_i, d, do_t, ad, weight=kt) if trans else Composite()
             order2 = self.max_order == 2 and refl is not None and trans is not None
             R2 = Composite()
             if order2:
-                x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, weights[4])
-                R2 = self.march(refl, x_t, d_r2, do_r2, ad)
+                x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, do_t)
+                R2 = self.march(refl, x_t, d_r2, do_r2, ad, weight=kt * Tr.B)
             D = self.march(trans, o, d, active, ad) if (trans and "trans_direct" in need) else Composite()
             out = self._combine(I, R, Tr, R2, D, weights, d, forward, order2)
             out["_passes"] = (I, R, Tr, R2, D)
@@ -572,7 +580,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         # 2. second-order reflection, then its ray's dependence on the transmission pass (and x_I)
         if order2:
             x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, weights[4])
-            g_xt, g_dr2 = self.march(refl, x_t, d_r2, do_r2, total=R2, adjoint=gR2, ray_grad=True)
+            g_xt, g_dr2 = self.march(refl, x_t, d_r2, do_r2, total=R2, adjoint=gR2, ray_grad=True,
+                                     weight=weights[2] * Tr.B)
             with dr.resume_grad():
                 x_il, Trl = mi.Point3f(x_i), Tr.leaf()
                 dr.enable_grad(x_il)
@@ -582,11 +591,12 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 g_xi += dr.grad(x_il)
         # 3. transmission and reflection replays; their rays' origin/direction adjoints
         if trans:
-            g_o, _ = self.march(trans, x_i, d, weights[4], total=Tr, adjoint=gTr, ray_grad=not self.detach_depth)
+            g_o, _ = self.march(trans, x_i, d, weights[4], total=Tr, adjoint=gTr, ray_grad=not self.detach_depth,
+                                weight=weights[2])
             g_xi += g_o
         g_dr = mi.Vector3f(0.0)
         if refl:
-            g_o, g_dr = self.march(refl, x_i, d_r, weights[3], total=R, adjoint=gR, ray_grad=True)
+            g_o, g_dr = self.march(refl, x_i, d_r, weights[3], total=R, adjoint=gR, ray_grad=True, weight=weights[1])
             g_xi += g_o
         # 4. secondary rays -> interface totals (normal through the mirror direction, depth through x_I)
         with dr.resume_grad():
