@@ -292,7 +292,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
     def sample_rays(self, scene, sensor, sampler, *args):
         # The camera's forward axis converts expected distance to planar depth (see glint_mi.conventions).
         self._forward = mi.Vector3f(sensor.world_transform() @ mi.Vector3f(0, 0, 1))
-        return super().sample_rays(scene, sensor, sampler, *args)
+        ray, weight, pos = super().sample_rays(scene, sensor, sampler, *args)
+        return from_pinhole(sensor, ray), weight, pos
 
     def sample(self, mode, scene, sampler, ray, δL=None, state_in=None, active=True, **kwargs):
         primal = mode == dr.ADMode.Primal
@@ -616,13 +617,6 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             self._path = mi.load_dict({"type": "path", "max_depth": self.max_depth, "hide_emitters": False})
         return self._path
 
-    @staticmethod
-    def _is_glass(si):
-        # dielectric: delta transmission; thindielectric: delta reflection + a Null (straight-through) lobe
-        flags = si.bsdf().flags()
-        thin = mi.has_flag(flags, mi.BSDFFlags.Null) & mi.has_flag(flags, mi.BSDFFlags.DeltaReflection)
-        return si.is_valid() & (mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission) | thin)
-
     @dr.syntax
     def _through_glass(self, scene, ray, active):
         """Advance rays past every glass surface they meet; returns rays whose first hit is opaque (or none)."""
@@ -631,7 +625,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         steps = mi.UInt32(0)
         while dr.hint(active, label="glint skip glass"):
             si = scene.ray_intersect(ray, active)
-            glass = active & self._is_glass(si)
+            glass = active & is_glass(si)
             ray[glass] = si.spawn_ray(ray.d)
             steps += 1
             active = glass & (steps < self.max_hits)
@@ -641,7 +635,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         """First-order reference on a mesh scene: one Fresnel split at the first glass surface (primal only)."""
         path = self._path_tracer()
         si = scene.ray_intersect(ray, active)
-        glass = active & self._is_glass(si)
+        glass = active & is_glass(si)
         # Non-glass pixels first, so they consume the sampler exactly like a plain `path` render.
         L_direct, _, _ = path.sample(scene, sampler, ray, None, active & ~glass)
 
@@ -663,17 +657,41 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         kt = dr.select(ok_t, bs_t.pdf, 0.0)
         rgb = dr.select(glass, F * L_r + kt * L_t, L_direct)
 
-        valid = active & si.is_valid()
-        dist = dr.select(valid, si.t, 0.0)
-        n = dr.select(valid, dr.select(dr.dot(si.n, ray.d) > 0, -si.n, si.n), mi.Vector3f(0.0))
+        surf = first_surface(si, ray, active, self._forward)
         zero3 = mi.Color3f(0.0)
-        tmask = dr.select(glass, 1.0, 0.0)
         kd = dr.select(glass, 0.0, 1.0)
-        return {"rgb": rgb, "kd": kd, "ks": F, "kt": kt, "distance": dist, "depth": dist * dr.dot(ray.d, self._forward),
-                "normal": n, "transparency": tmask, "interface": dr.select(glass, zero3, mi.Color3f(L_direct)),
-                "reflection": mi.Color3f(L_r), "transmission": mi.Color3f(L_t),
-                "alpha": dr.select(valid, 1.0, 0.0), "weights": (kd, F, kt),
+        return {"rgb": rgb, "kd": kd, "ks": F, "kt": kt, "distance": surf["distance"], "depth": surf["depth"],
+                "normal": surf["normal"], "transparency": surf["glass"], "alpha": surf["alpha"],
+                "interface": dr.select(glass, zero3, mi.Color3f(L_direct)),
+                "reflection": mi.Color3f(L_r), "transmission": mi.Color3f(L_t), "weights": (kd, F, kt),
                 "trans_direct": (zero3, mi.Float(0.0), mi.Vector3f(0.0), mi.Float(0.0))}
+
+
+def from_pinhole(sensor, ray):
+    """Perspective sensors start rays on the near plane (near_clip away); move the origins back to the pinhole so
+    that hit distances, hence depths, are measured from the camera centre (protocol: planar depth from the camera)."""
+    if sensor.class_name() == "PerspectiveCamera":
+        ray = mi.Ray3f(ray)
+        ray.o = mi.Point3f(sensor.world_transform().translation())
+    return ray
+
+
+def is_glass(si):
+    """Hits on glass: ``dielectric`` (delta transmission) or ``thindielectric`` (delta reflection + Null lobe)."""
+    flags = si.bsdf().flags()
+    thin = mi.has_flag(flags, mi.BSDFFlags.Null) & mi.has_flag(flags, mi.BSDFFlags.DeltaReflection)
+    return si.is_valid() & (mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission) | thin)
+
+
+def first_surface(si, ray, active, forward) -> dict:
+    """Ground-truth buffers of the first surface along rays (glass included), in the project's conventions:
+    ``depth`` planar camera z, ``normal`` world shading normal facing the ray, ``glass`` mask, ``alpha`` hit mask."""
+    valid = active & si.is_valid()
+    dist = dr.select(valid, si.t, 0.0)
+    n = si.sh_frame.n
+    n = dr.select(valid, dr.select(dr.dot(n, ray.d) > 0, -n, n), mi.Vector3f(0.0))
+    return {"distance": dist, "depth": dist * dr.dot(ray.d, forward), "normal": n,
+            "glass": dr.select(valid & is_glass(si), 1.0, 0.0), "alpha": dr.select(valid, 1.0, 0.0)}
 
 
 def register() -> None:

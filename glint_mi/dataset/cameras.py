@@ -1,0 +1,154 @@
+"""Camera trajectories around the glass case and their export: COLMAP text model and NeRF ``transforms.json``.
+
+Camera frames: Mitsuba camera-to-world matrices (x left, y up, z forward). COLMAP: x right, y down, z forward, so
+``R_c2w_colmap = R_c2w_mitsuba @ diag(-1, -1, 1)``; NeRF/OpenGL: x right, y up, z backward, so
+``R_c2w_gl = R_c2w_mitsuba @ diag(-1, 1, -1)``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+MI_TO_COLMAP = np.diag([-1.0, -1.0, 1.0])
+MI_TO_GL = np.diag([-1.0, 1.0, -1.0])
+
+
+@dataclasses.dataclass
+class Camera:
+    """A pinhole view: Mitsuba camera-to-world [4,4] and intrinsics in pixels."""
+
+    name: str
+    c2w: np.ndarray
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def fov_x_deg(self) -> float:
+        return float(np.degrees(2 * np.arctan(0.5 * self.width / self.fx)))
+
+    @property
+    def K(self) -> np.ndarray:
+        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1.0]])
+
+
+def look_at(origin, target, up=(0, 0, 1)) -> np.ndarray:
+    """Mitsuba's look_at: columns (left, up', forward, origin)."""
+    origin, target, up = (np.asarray(v, float) for v in (origin, target, up))
+    f = target - origin
+    f /= np.linalg.norm(f)
+    left = np.cross(up, f)
+    left /= np.linalg.norm(left)
+    new_up = np.cross(f, left)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, f, origin
+    return m
+
+
+def _free(p, room, margin=0.25) -> bool:
+    if np.any(p < margin) or np.any(p > room.size - margin):
+        return False
+    return not any(np.all(p > lo - margin) and np.all(p < hi + margin) for lo, hi, _ in room.boxes(include_case=True))
+
+
+def _sees_case(p, room, steps=48) -> bool:
+    """No furniture box between the camera and the case centre (sampled along the segment)."""
+    c = room.case_center
+    for s in np.linspace(0.05, 0.95, steps):
+        q = p + s * (c - p)
+        if np.all(q >= room.case_lo - 0.01) and np.all(q <= room.case_hi + 0.01):
+            return True
+        if any(np.all(q > lo) and np.all(q < hi) for lo, hi, _ in room.boxes()):
+            return False
+    return True
+
+
+def trajectory(room, n_views: int, width: int, height: int, seed: int, fov_deg: float = 60.0) -> list[Camera]:
+    """A continuous arc of viewpoints around the case, every view looking at it (the paper's design)."""
+    rng = np.random.default_rng(seed + 7919)
+    c = room.case_center
+    fx = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
+    for attempt in range(400):
+        radius = rng.uniform(1.0, 2.2) * (1 - attempt / 500)
+        start, span = rng.uniform(0, 2 * np.pi), np.radians(rng.uniform(80, 150))
+        h0, h1 = rng.uniform(1.1, 1.7, 2)
+        ts = np.linspace(0, 1, n_views)
+        pos = np.stack([c[0] + radius * np.cos(start + span * ts), c[1] + radius * np.sin(start + span * ts),
+                        h0 + (h1 - h0) * ts], -1)
+        if all(_free(p, room) and _sees_case(p, room) for p in pos):
+            break
+    else:
+        raise RuntimeError("no camera arc around the case fits this room; try another seed.")
+    cams = []
+    for i, p in enumerate(pos):
+        target = c + rng.normal(0, 0.03, 3)
+        cams.append(Camera(f"view_{i:03d}", look_at(p, target), width, height, fx, fx, width / 2, height / 2))
+    return cams
+
+
+# ------------------------------------------------------------------ export
+def rotmat_to_qvec(R: np.ndarray) -> np.ndarray:
+    """Rotation matrix -> unit quaternion (w, x, y, z) with w >= 0 (COLMAP's convention)."""
+    # symmetric 4x4 whose dominant eigenvector is the quaternion (x, y, z, w); names follow R's row-major flattening
+    Rxx, Ryx, Rzx, Rxy, Ryy, Rzy, Rxz, Ryz, Rzz = np.asarray(R, float).flat
+    K = np.array([
+        [Rxx - Ryy - Rzz, 0, 0, 0],
+        [Ryx + Rxy, Ryy - Rxx - Rzz, 0, 0],
+        [Rzx + Rxz, Rzy + Ryz, Rzz - Rxx - Ryy, 0],
+        [Ryz - Rzy, Rzx - Rxz, Rxy - Ryx, Rxx + Ryy + Rzz]]) / 3.0
+    vals, vecs = np.linalg.eigh(K)
+    q = vecs[[3, 0, 1, 2], np.argmax(vals)]
+    return -q if q[0] < 0 else q
+
+
+def qvec_to_rotmat(q) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([[1 - 2 * y * y - 2 * z * z, 2 * x * y - 2 * w * z, 2 * x * z + 2 * w * y],
+                     [2 * x * y + 2 * w * z, 1 - 2 * x * x - 2 * z * z, 2 * y * z - 2 * w * x],
+                     [2 * x * z - 2 * w * y, 2 * y * z + 2 * w * x, 1 - 2 * x * x - 2 * y * y]])
+
+
+def colmap_pose(cam: Camera):
+    """World-to-camera (qvec w,x,y,z; tvec) in COLMAP axes for a Mitsuba camera."""
+    R_c2w = cam.c2w[:3, :3] @ MI_TO_COLMAP
+    R_w2c = R_c2w.T
+    t = -R_w2c @ cam.c2w[:3, 3]
+    return rotmat_to_qvec(R_w2c), t
+
+
+def write_colmap_text(folder: Path, cams: list[Camera], points=None) -> None:
+    """``cameras.txt`` (one PINHOLE camera per view), ``images.txt``, ``points3D.txt`` (xyz, rgb) in ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / "cameras.txt", "w") as f:
+        f.write("# CAMERA_ID, MODEL, WIDTH, HEIGHT, fx, fy, cx, cy\n")
+        for i, c in enumerate(cams, 1):
+            f.write(f"{i} PINHOLE {c.width} {c.height} {c.fx:.10g} {c.fy:.10g} {c.cx:.10g} {c.cy:.10g}\n")
+    with open(folder / "images.txt", "w") as f:
+        f.write("# IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n# (no 2D points)\n")
+        for i, c in enumerate(cams, 1):
+            q, t = colmap_pose(c)
+            f.write(f"{i} {' '.join(f'{v:.12g}' for v in q)} {' '.join(f'{v:.12g}' for v in t)} {i} {c.name}.png\n\n")
+    with open(folder / "points3D.txt", "w") as f:
+        f.write("# POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[]\n")
+        if points is not None:
+            xyz, rgb = points
+            for i, (p, c) in enumerate(zip(xyz, rgb), 1):
+                f.write(f"{i} {p[0]:.8g} {p[1]:.8g} {p[2]:.8g} {int(c[0])} {int(c[1])} {int(c[2])} 0\n")
+
+
+def write_transforms_json(path: Path, cams: list[Camera]) -> None:
+    c0 = cams[0]
+    frames = []
+    for c in cams:
+        m = c.c2w.copy()
+        m[:3, :3] = m[:3, :3] @ MI_TO_GL
+        frames.append({"file_path": f"images/{c.name}.png", "transform_matrix": m.tolist()})
+    data = {"fl_x": c0.fx, "fl_y": c0.fy, "cx": c0.cx, "cy": c0.cy, "w": c0.width, "h": c0.height,
+            "camera_model": "OPENCV", "frames": frames}
+    path.write_text(json.dumps(data, indent=1))

@@ -1,0 +1,199 @@
+"""Generated transparent rooms: geometry rules, ground truth, camera exports and the dataset loader."""
+import json
+import shutil
+import struct
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mitsuba as mi
+
+import glint_mi
+from glint_mi.data import DatasetError, View, load_dataset
+from glint_mi.dataset.cameras import MI_TO_COLMAP, rotmat_to_qvec, qvec_to_rotmat
+from glint_mi.dataset.generate import Preset, make_scene, read_gt_exr
+from glint_mi.dataset.room import _overlap, build_room
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ds") / "scene"
+    make_scene(out, seed=6, preset=Preset.named("tiny", views=9, spp=16))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_case_rests_on_a_support_and_intersects_nothing(seed):
+    room = build_room(seed)
+    lo, hi = room.case_lo, room.case_hi
+    assert np.all(lo >= 0) and np.all(hi <= room.size)
+    tops = {name: h[2] for l, h, name in room.boxes()}
+    assert np.isclose(lo[2], 0.0 if room.support == "floor" else tops[room.support], atol=1e-9)
+    for l2, h2, name in room.boxes():
+        assert not _overlap(lo + [0, 0, 1e-6], hi, l2, h2), f"case intersects {name}"
+    glass = [p for p in room.parts if p.glass]
+    assert len(glass) == 6 and any(p.name == "case_frame" for p in room.parts)
+    assert 1 <= sum(p.name.startswith("case_object") for p in room.parts) <= 3
+    furniture = {p.name.split("_")[0] for p in room.parts if p.aabb is not None and not p.name.startswith("case")}
+    assert 2 <= len(furniture) <= 5
+
+
+def test_scene_folder_layout_and_ground_truth(scene_dir):
+    for rel in ("scene.xml", "meta.json", "split.json", "transforms.json", "sparse/0/cameras.txt",
+                "sparse/0/images.txt", "sparse/0/points3D.txt"):
+        assert (scene_dir / rel).exists(), rel
+    meta = json.loads((scene_dir / "meta.json").read_text())
+    assert meta["views"] == 9 and 0.01 < meta["glass_pixel_fraction"] < 0.9
+    split = json.loads((scene_dir / "split.json").read_text())
+    assert split["test"] == ["view_000", "view_008"] and len(split["train"]) == 7
+    gt = read_gt_exr(scene_dir / "gt" / "view_003.exr")
+    assert set(gt) == {"R", "G", "B", "Z", "N.X", "N.Y", "N.Z", "T"}
+    assert gt["Z"].shape == (27, 48)
+    n = np.stack([gt["N.X"], gt["N.Y"], gt["N.Z"]], -1)
+    hit = gt["Z"] > 0
+    assert hit.mean() > 0.99, "a closed room: every pixel sees a surface"
+    np.testing.assert_allclose(np.linalg.norm(n[hit], axis=-1), 1.0, atol=1e-4)
+    assert set(np.unique(gt["T"])) <= {0.0, 1.0} and gt["T"].mean() > 0.01
+    rgb = np.stack([gt["R"], gt["G"], gt["B"]], -1)
+    assert np.isfinite(rgb).all() and 0.03 < rgb.mean() < 2.0
+
+
+def test_scene_xml_rerenders_and_cameras_round_trip(scene_dir):
+    """COLMAP and transforms.json cameras reproduce the scene.xml sensors; GT depth matches a fresh ray cast."""
+    scene = glint_mi.load_file(scene_dir / "scene.xml")
+    ds_colmap = load_dataset(scene_dir)
+    ds_gl = load_dataset(scene_dir / "transforms.json")
+    assert ds_colmap.source == "colmap" and ds_gl.source == "transforms"
+    for i, sensor in enumerate(scene.sensors()):
+        m = np.array(sensor.world_transform().matrix)[..., 0] if np.array(sensor.world_transform().matrix).ndim == 3 \
+            else np.array(sensor.world_transform().matrix)
+        for ds in (ds_colmap, ds_gl):
+            v = ds.views[i]
+            np.testing.assert_allclose(v.c2w, m, atol=1e-5)
+            fov = mi.traverse(sensor)["x_fov"][0]
+            np.testing.assert_allclose(v.K[0, 0], 0.5 * v.width / np.tan(np.radians(fov) / 2), rtol=1e-5)
+    # planar depth in the EXR equals z of the back-projected surface point in COLMAP camera coordinates
+    v = ds_colmap.views[2]
+    gt = v.load_gt()
+    from glint_mi.render import camera_rays
+    pix = np.array([[10, 5], [24, 13], [40, 20]])
+    ray, _ = camera_rays(scene.sensors()[2], pix)
+    si = scene.ray_intersect(ray)
+    p_world = np.array(si.p).T
+    R_c2w = v.c2w[:3, :3] @ MI_TO_COLMAP
+    p_cam = (p_world - v.c2w[:3, 3]) @ R_c2w  # world -> OpenCV camera
+    np.testing.assert_allclose(p_cam[:, 2], gt["depth"][pix[:, 1], pix[:, 0]], rtol=1e-4)
+    uv = (p_cam / p_cam[:, 2:]) @ v.K.T  # pinhole projection lands on the pixel centre
+    np.testing.assert_allclose(uv[:, :2], pix + 0.5, atol=1e-3)
+
+
+def test_principal_point_offset_matches_K():
+    """View.sensor_dict() rays go through K^-1 (u, v, 1) also for an off-centre principal point."""
+    K = np.array([[40.0, 0, 30.0], [0, 40.0, 14.0], [0, 0, 1]])
+    v = View("x", Path("x.png"), 48, 27, K, np.eye(4))
+    sensor = mi.load_dict(v.sensor_dict())
+    from glint_mi.render import camera_rays
+    pix = np.array([[3, 2], [30, 14], [45, 25]])
+    ray, _ = camera_rays(sensor, pix)
+    d_mi = np.array(ray.d).T
+    d_cv = np.column_stack([(pix + 0.5 - K[:2, 2]) / 40.0, np.ones(3)]) * [-1, -1, 1]  # OpenCV -> Mitsuba camera axes
+    d_cv /= np.linalg.norm(d_cv, axis=1, keepdims=True)
+    np.testing.assert_allclose(d_mi, d_cv, atol=1e-5)
+
+
+def test_quaternion_round_trip(rng):
+    for _ in range(20):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        q = q if q[0] >= 0 else -q
+        np.testing.assert_allclose(rotmat_to_qvec(qvec_to_rotmat(q)), q, atol=1e-9)
+
+
+def _write_colmap_bin(src: Path, dst: Path):
+    """Convert the text model to COLMAP's binary format (cameras.bin, images.bin, points3D.bin)."""
+    dst.mkdir(parents=True)
+    cams = [l.split() for l in open(src / "cameras.txt") if l.strip() and not l.startswith("#")]
+    with open(dst / "cameras.bin", "wb") as f:
+        f.write(struct.pack("<Q", len(cams)))
+        for c in cams:
+            f.write(struct.pack("<iiQQ", int(c[0]), 1, int(c[2]), int(c[3])) + struct.pack("<4d", *map(float, c[4:8])))
+    ims = [l.split() for l in open(src / "images.txt") if l.strip() and not l.startswith("#")]
+    with open(dst / "images.bin", "wb") as f:
+        f.write(struct.pack("<Q", len(ims)))
+        for im in ims:
+            f.write(struct.pack("<i7di", int(im[0]), *map(float, im[1:8]), int(im[8])) + im[9].encode() + b"\x00")
+            f.write(struct.pack("<Q", 0))
+    with open(dst / "points3D.bin", "wb") as f:
+        f.write(struct.pack("<Q", 1) + struct.pack("<Q3d3BdQ", 1, 1.0, 2.0, 3.0, 10, 20, 30, 0.5, 0))
+
+
+def test_colmap_binary_equals_text(scene_dir, tmp_path):
+    copy = tmp_path / "bin"
+    shutil.copytree(scene_dir / "images", copy / "images")
+    _write_colmap_bin(scene_dir / "sparse" / "0", copy / "sparse" / "0")
+    a, b = load_dataset(scene_dir), load_dataset(copy)
+    for va, vb in zip(a.views, b.views):
+        np.testing.assert_allclose(va.c2w, vb.c2w, atol=1e-9)
+        np.testing.assert_allclose(va.K, vb.K)
+    np.testing.assert_allclose(b.points, [[1.0, 2.0, 3.0]])
+
+
+def test_loader_errors_name_file_and_fix(scene_dir, tmp_path):
+    bad = tmp_path / "bad"
+    shutil.copytree(scene_dir, bad, ignore=shutil.ignore_patterns("meshes", "textures", "gt"))
+    (bad / "images" / "view_004.png").unlink()
+    with pytest.raises(DatasetError, match=r"view_004\.png: image listed in .*images.* is missing"):
+        load_dataset(bad)
+    shutil.copy(bad / "images" / "view_003.png", bad / "images" / "view_004.png")
+    from PIL import Image
+    Image.new("RGB", (10, 7)).save(bad / "images" / "view_005.png")
+    with pytest.raises(DatasetError, match=r"view_005\.png: 7x10 \(HxW\) but its camera says 27x48"):
+        load_dataset(bad)
+    shutil.copy(bad / "images" / "view_003.png", bad / "images" / "view_005.png")
+    cams = (bad / "sparse" / "0" / "cameras.txt").read_text().replace("PINHOLE", "OPENCV", 1)
+    (bad / "sparse" / "0" / "cameras.txt").write_text(cams)
+    with pytest.raises(DatasetError, match="OPENCV is not supported.*image_undistorter"):
+        load_dataset(bad)
+    shutil.rmtree(bad / "sparse")
+    (bad / "split.json").write_text(json.dumps({"train": ["view_001", "nope"], "test": ["view_000"]}))
+    with pytest.raises(DatasetError, match=r"split\.json.*unknown: \['nope'\]"):
+        load_dataset(bad)
+    (bad / "split.json").unlink()
+    ds = load_dataset(bad)  # transforms.json, default split: every 8th view from 0
+    assert ds.split["test"] == ["view_000", "view_008"]
+    tj = json.loads((bad / "transforms.json").read_text())
+    del tj["frames"][0]["transform_matrix"]
+    (bad / "transforms.json").write_text(json.dumps(tj))
+    with pytest.raises(DatasetError, match=r"frames\[0\] needs 'file_path' and 'transform_matrix'"):
+        load_dataset(bad)
+    with pytest.raises(DatasetError, match="no such dataset folder"):
+        load_dataset(tmp_path / "missing")
+
+
+def test_nan_in_gt_exr_is_reported(scene_dir, tmp_path):
+    from glint_mi.dataset.generate import write_gt_exr
+    ds = load_dataset(scene_dir)
+    v = ds.views[1]
+    gt = v.load_gt()
+    z = gt["depth"].copy()
+    z[3, 4] = np.nan
+    bad = tmp_path / "nan.exr"
+    write_gt_exr(bad, gt["rgb"], {"Z": z[..., None], "N": gt["normal"], "T": gt["glass"][..., None]})
+    v.gt_path = bad
+    with pytest.raises(DatasetError, match=r"nan\.exr: NaN/Inf in 'depth'"):
+        v.load_gt()
+
+
+def test_cli_make_tiny(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "glint_mi.dataset", "make", str(tmp_path), "--scenes", "1", "--seed", "3",
+                        "--preset", "tiny", "--views", "3", "--spp", "4"], capture_output=True, text=True, cwd=ROOT,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "scene_003: 3 views" in r.stdout
+    assert json.loads((tmp_path / "summary.json").read_text())["scenes"][0]["scene"] == "scene_003"
+    assert not any(p.name.endswith(".partial") for p in tmp_path.iterdir())
