@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 @pytest.fixture(scope="module")
 def scene_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("ds") / "scene"
-    make_scene(out, seed=6, preset=Preset.named("tiny", views=9, spp=16))
+    make_scene(out, seed=6, preset=Preset.named("tiny", views=9, spp=16), sfm="none")
     return out
 
 
@@ -197,3 +197,52 @@ def test_cli_make_tiny(tmp_path):
     assert "scene_003: 3 views" in r.stdout
     assert json.loads((tmp_path / "summary.json").read_text())["scenes"][0]["scene"] == "scene_003"
     assert not any(p.name.endswith(".partial") for p in tmp_path.iterdir())
+
+
+def test_sfm_points_lie_on_surfaces(tmp_path):
+    """Known-pose triangulation (pycolmap SIFT + matching) gives points on the scene's surfaces."""
+    from glint_mi.dataset.cameras import trajectory
+    from glint_mi.dataset.generate import sfm_points, write_scene_files
+    room = build_room(2)
+    cams = trajectory(room, 10, 96, 54, 2)
+    xml = write_scene_files(tmp_path, room, cams, 16)
+    xyz, rgb, stats = sfm_points(xml, tmp_path, cams, "known", width=384, spp=128)
+    assert stats["points3D"] >= 20 and stats["mean_reprojection_error_px"] < 2.0
+    scene = glint_mi.load_file(xml)
+    # distance from each point to the first surface seen from the nearest camera along the line of sight
+    errs = []
+    for p in xyz:
+        c = min(cams, key=lambda c: np.linalg.norm(c.c2w[:3, 3] - p)).c2w[:3, 3]
+        d = p - c
+        dist = np.linalg.norm(d)
+        ray = mi.Ray3f(mi.Point3f(*c.tolist()), mi.Vector3f(*(d / dist).tolist()))
+        errs.append(abs(float(np.array(scene.ray_intersect(ray).t)[0]) - dist))
+    assert np.median(errs) < 0.03, f"median distance to the surface {np.median(errs):.3f} m"
+
+
+def test_derived_priors_have_the_documented_corruptions(scene_dir):
+    from glint_mi.dataset.priors import load_prior, priors_are_derived
+    ds = load_dataset(scene_dir)
+    assert priors_are_derived(scene_dir)
+    record = json.loads((scene_dir / "priors" / "PRIORS.json").read_text())
+    for v in ds.views[:4]:
+        gt = v.load_gt()
+        d, n, a = (load_prior(scene_dir, v, k) for k in ("depth", "normal", "albedo"))
+        glass = gt["glass"] > 0.5
+        opaque = ~glass & (gt["depth"] > 0)
+        # depth: affine in the truth off glass (unknown scale/shift), farther than the glass on glass (sees through)
+        A = np.column_stack([gt["depth"][opaque], np.ones(opaque.sum())])
+        (s, b), *_ = np.linalg.lstsq(A, d[opaque], rcond=None)
+        # loose: at 48 x 27 the 1 px blur mixes depths across edges, which biases a plain least-squares fit
+        assert np.isclose(s, record["views"][v.name]["depth_scale"], rtol=0.3)
+        rel = np.abs(A @ [s, b] - d[opaque]) / np.abs(d[opaque])
+        assert np.median(rel) < 0.05
+        if glass.sum() > 5:
+            assert np.median((d[glass] - b) / s - gt["depth"][glass]) > 0.05
+            assert a[glass].mean() < 0.08
+        # normals: camera space (OpenCV), close to the truth off glass
+        from glint_mi.conventions import world_to_opencv_normals
+        n_gt = world_to_opencv_normals(gt["normal"], v.c2w)
+        ang = np.degrees(np.arccos(np.clip((n * n_gt).sum(-1), -1, 1)))[opaque]
+        assert np.median(ang) < 12
+        assert n_gt[opaque][:, 2].mean() < 0, "normals face the camera: negative z in OpenCV camera space"

@@ -18,7 +18,20 @@ def main(argv=None) -> int:
     mk.add_argument("--preset", default="quick", choices=["tiny", "quick", "bench"])
     mk.add_argument("--views", type=int, help="override the preset's number of views")
     mk.add_argument("--spp", type=int, help="override the preset's samples per pixel")
+    mk.add_argument("--sfm", choices=["known", "full", "none"], default=None,
+                    help="SfM points: triangulate with the known poses (default; 'none' for the tiny preset), "
+                         "'full' also runs SfM without poses and reports its pose error")
+    mk.add_argument("--priors", choices=["derived", "none"], default="derived",
+                    help="write imperfect depth/normal/albedo priors derived from ground truth (labelled as such)")
+    pr = sub.add_parser("priors", help="(re)derive imperfect priors for a generated scene")
+    pr.add_argument("scene", type=Path)
+    pr.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
+    if args.cmd == "priors":
+        from .priors import derive_priors
+
+        print(f"wrote {derive_priors(args.scene, args.seed)} (derived from ground truth)")
+        return 0
 
     from tqdm import tqdm
 
@@ -34,12 +47,17 @@ def main(argv=None) -> int:
             def progress(done, total):
                 bar.n = done
                 bar.refresh()
-            meta = make_scene(args.out / name, args.seed + i, preset, progress)
+            meta = make_scene(args.out / name, args.seed + i, preset, progress,
+                              sfm=args.sfm or ("none" if args.preset == "tiny" else "known"),
+                              priors=args.priors == "derived")
         summary.append({"scene": name, **{k: meta[k] for k in ("total_seconds", "gt_noise_psnr_db",
                                                                 "glass_pixel_fraction", "case_support")}})
+        pts = meta["sfm"].get("points3D", 0)
         print(f"{name}: {meta['views']} views in {meta['total_seconds']:.1f} s, GT noise PSNR "
               f"{meta['gt_noise_psnr_db']:.1f} dB, glass pixels {100 * meta['glass_pixel_fraction']:.1f} %, "
-              f"case on {meta['case_support']}")
+              f"case on {meta['case_support']}, {pts} SfM points ({meta['sfm']['mode']})")
+        if "full_sfm" in meta["sfm"]:
+            print(f"  full SfM: {json.dumps(meta['sfm']['full_sfm'])}")
     total = time.perf_counter() - t0
     (args.out / "summary.json").write_text(json.dumps({"preset": args.preset, "total_seconds": total,
                                                        "scenes": summary}, indent=1))

@@ -193,13 +193,55 @@ def auto_exposure(scene_xml: Path, target: float = 0.2) -> float:
     return float(np.clip(target / max(np.mean(lum), 1e-6), 0.05, 50.0))
 
 
+def sfm_points(scene_xml: Path, folder: Path, cams: list[Camera], mode: str, width: int = 384, spp: int = 128):
+    """SfM points for the scene: SIFT on renders at >= ``width`` px (the training images are too small for SIFT),
+    triangulated with the known poses; ``mode == 'full'`` also runs SfM without poses and reports its pose error.
+    Returns (xyz, rgb, stats); the SfM images stay in sfm/images."""
+    import dataclasses as dc
+
+    import mitsuba as mi
+    from PIL import Image
+
+    import glint_mi
+    from glint_mi.data import View
+
+    from .sfm import full_sfm_pose_error, triangulate_known_poses
+
+    scale = max(1, int(np.ceil(width / cams[0].width)))
+    scene = glint_mi.load_file(scene_xml)
+    fast = mi.load_dict({"type": "path", "max_depth": 6})  # feature matching needs texture, not exact transport
+    img_dir = folder / "sfm" / "images"
+    img_dir.mkdir(parents=True, exist_ok=True)
+    big = []
+    t0 = time.perf_counter()
+    for i, c in enumerate(cams):
+        cs = dc.replace(c, width=c.width * scale, height=c.height * scale, fx=c.fx * scale, fy=c.fy * scale,
+                        cx=c.cx * scale, cy=c.cy * scale)
+        sensor = mi.load_dict(View(c.name, Path(""), cs.width, cs.height, cs.K, cs.c2w).sensor_dict(spp))
+        rgb = np.array(mi.render(scene, sensor=sensor, integrator=fast, spp=spp, seed=100_000 + i))
+        Image.fromarray(np.clip(np.round(linear_to_srgb(rgb) * 255), 0, 255).astype(np.uint8)).save(
+            img_dir / f"{c.name}.png")
+        big.append(cs)
+    xyz, rgb, stats = triangulate_known_poses(folder / "sfm", big)
+    stats = {"sfm_image_size": [big[0].width, big[0].height], "sfm_render_seconds": time.perf_counter() - t0, **stats}
+    if mode == "full":
+        stats["full_sfm"] = full_sfm_pose_error(folder / "sfm", big)
+    return xyz, rgb, stats
+
+
 def split_views(names: list[str], every: int = 8) -> dict:
     test = names[::every]
     return {"train": [n for n in names if n not in test], "test": test}
 
 
-def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=None) -> dict:
-    """Generate, render and export one scene into ``folder`` (written to a temporary folder, then moved)."""
+def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=None, sfm: str = "known",
+               priors: bool = True) -> dict:
+    """Generate, render and export one scene into ``folder`` (written to a temporary folder, then moved).
+
+    ``sfm``: ``known`` (SfM points triangulated with the true poses), ``full`` (also SfM without poses, its pose
+    error reported in meta.json), ``none`` (no points3D)."""
+    if sfm not in ("known", "full", "none"):
+        raise ValueError(f"sfm must be known, full or none (got '{sfm}').")
     import mitsuba as mi
 
     import glint_mi
@@ -216,7 +258,11 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     exposure = auto_exposure(xml)
     xml = write_scene_files(tmp, room, cams, preset.spp, exposure)
     stats = render_views(xml, tmp, cams, preset.spp, progress)
-    write_colmap_text(tmp / "sparse" / "0", cams)
+    points, sfm_stats = None, {"mode": "none"}
+    if sfm != "none":
+        xyz, rgb, st = sfm_points(xml, tmp, cams, sfm)
+        points, sfm_stats = (xyz, rgb), {"mode": sfm, **st}
+    write_colmap_text(tmp / "sparse" / "0", cams, points)
     write_transforms_json(tmp / "transforms.json", cams)
     split = split_views([c.name for c in cams])
     (tmp / "split.json").write_text(json.dumps(split, indent=1))
@@ -225,8 +271,13 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
             "case_hi": room.case_hi.round(4).tolist(), "case_support": room.support,
             "furniture": sorted({p.name.split("_")[0] for p in room.parts if p.aabb is not None
                                  and not p.name.startswith("case")}),
-            "views": len(cams), "points3D": "none (known poses only; SfM triangulation not yet implemented)",
+            "views": len(cams), "sfm": sfm_stats,
             "emitter_scale": exposure, **stats, "total_seconds": time.perf_counter() - t0}
+    if priors:
+        from .priors import derive_priors
+
+        derive_priors(tmp, seed)
+        meta["priors"] = "derived from ground truth (see priors/PRIORS.json)"
     (tmp / "meta.json").write_text(json.dumps(meta, indent=1))
     if folder.exists():
         shutil.rmtree(folder)

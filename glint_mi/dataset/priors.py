@@ -1,0 +1,156 @@
+"""Geometry and albedo priors: readers for per-view prior maps, and imperfect priors derived from ground truth.
+
+Layout: ``priors/{depth,normal,albedo}/<view>.{npy,exr,png}`` beside the images. Depth priors are relative (any
+scale and shift: the depth loss solves for them); normal priors are unit vectors in camera space, OpenCV axes
+(x right, y down, z forward); albedo priors are linear RGB in [0, 1].
+
+Derived priors mimic monocular estimators, so that results made with them are meaningful (and are labelled:
+``priors/PRIORS.json`` says ``"derived_from_ground_truth": true`` with every corruption parameter):
+unknown per-image scale and shift of depth, multiplicative depth noise, Gaussian blur, angular normal noise, and on
+glass the estimator *sees through*: depth and normal of the first opaque surface behind the glass, near-black
+albedo (glass has almost no diffuse albedo).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+KINDS = ("depth", "normal", "albedo")
+
+
+@dataclasses.dataclass
+class Corruption:
+    depth_scale: tuple = (0.5, 2.0)      # per-image unknown scale (uniform)
+    depth_shift: tuple = (-0.3, 0.3)     # per-image unknown shift, in units of the median depth
+    depth_noise: float = 0.02            # multiplicative Gaussian noise (std)
+    blur_px: float = 1.0                 # Gaussian blur sigma of every map (pixels)
+    normal_noise_deg: float = 5.0        # angular noise of normals (std, degrees)
+    albedo_noise: float = 0.03
+    glass_albedo: float = 0.02           # what the estimator reports on glass
+    see_through_glass: bool = True
+
+
+class PriorError(ValueError):
+    pass
+
+
+def load_prior(root: Path, view, kind: str) -> np.ndarray | None:
+    """The ``kind`` prior of ``view`` ([H,W] depth, [H,W,3] normal or albedo), or None when absent."""
+    if kind not in KINDS:
+        raise PriorError(f"unknown prior kind '{kind}'; use one of {KINDS}.")
+    folder = Path(root) / "priors" / kind
+    for ext in (".npy", ".exr", ".png"):
+        p = folder / f"{view.name}{ext}"
+        if p.exists():
+            break
+    else:
+        return None
+    if ext == ".npy":
+        arr = np.load(p)
+    elif ext == ".exr":
+        import OpenEXR
+
+        with OpenEXR.File(str(p), separate_channels=True) as f:
+            ch = {k: np.array(v.pixels) for k, v in f.channels().items()}
+        arr = ch.get("Z", ch.get("Y")) if kind == "depth" else np.stack([ch[c] for c in sorted(ch)[:3]], -1)
+    else:
+        from PIL import Image
+
+        arr = np.asarray(Image.open(p), np.float32) / (65535.0 if kind == "depth" else 255.0)
+        if kind == "normal":
+            arr = arr[..., :3] * 2 - 1
+    arr = np.asarray(arr, np.float32)
+    want = (view.height, view.width) if kind == "depth" else (view.height, view.width, 3)
+    if arr.shape != want:
+        raise PriorError(f"{p}: shape {arr.shape}, expected {want} for view {view.name}; resize the prior.")
+    if not np.isfinite(arr).all():
+        raise PriorError(f"{p}: contains NaN/Inf; mark invalid pixels with 0 instead.")
+    return arr
+
+
+def _blur(x, sigma):
+    from scipy.ndimage import gaussian_filter
+
+    if sigma <= 0:
+        return x
+    return gaussian_filter(x, sigma=(sigma, sigma) + (0,) * (x.ndim - 2))
+
+
+def _behind_glass(scene, sensor, max_steps=16):
+    """Depth (planar), camera ray distance, world normal and diffuse albedo of the first non-glass surface."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from glint_mi.render import camera_rays
+    from glint_mi_plugins.glint_integrator import first_surface, is_glass
+
+    w, h = sensor.film().crop_size()
+    pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
+    ray, fwd = camera_rays(sensor, pix)
+    o = mi.Point3f(ray.o)
+    with dr.suspend_grad():
+        si = scene.ray_intersect(ray)
+        for _ in range(max_steps):  # a handful of glass layers at most: a Python loop is enough here
+            glass = is_glass(si)
+            if not dr.any(glass):
+                break
+            nxt = si.spawn_ray(ray.d)
+            ray = mi.Ray3f(dr.select(glass, nxt.o, ray.o), ray.d)
+            si2 = scene.ray_intersect(ray)
+            si = dr.select(glass, si2, si)
+        full = mi.Ray3f(o, ray.d)  # distances from the camera
+        si.t = dr.norm(si.p - o)
+        s = first_surface(si, full, mi.Bool(True), fwd)
+        albedo = si.bsdf().eval_diffuse_reflectance(si, si.is_valid())
+    return (np.array(s["depth"]).reshape(h, w), np.array(s["normal"]).T.reshape(h, w, 3),
+            np.array(albedo).T.reshape(h, w, 3))
+
+
+def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None = None) -> Path:
+    """Write imperfect priors for every view of a generated scene; returns the priors folder."""
+    import glint_mi
+    import mitsuba as mi
+
+    from glint_mi.conventions import world_to_opencv_normals
+    from glint_mi.data import load_dataset
+
+    c = corruption or Corruption()
+    rng = np.random.default_rng(seed)
+    scene_dir = Path(scene_dir)
+    ds = load_dataset(scene_dir)
+    scene = glint_mi.load_file(scene_dir / "scene.xml")
+    out = scene_dir / "priors"
+    for k in KINDS:
+        (out / k).mkdir(parents=True, exist_ok=True)
+    record = {"derived_from_ground_truth": True, "seed": seed, "corruption": dataclasses.asdict(c), "views": {}}
+    for v in ds.views:
+        gt = v.load_gt()
+        sensor = mi.load_dict(v.sensor_dict())
+        z_behind, n_behind, alb = _behind_glass(scene, sensor)
+        glass = gt["glass"] > 0.5
+        depth = np.where(glass & c.see_through_glass, z_behind, gt["depth"])
+        normal = np.where((glass & c.see_through_glass)[..., None], n_behind, gt["normal"])
+        albedo = np.where(glass[..., None], c.glass_albedo, alb)
+        a, b = rng.uniform(*c.depth_scale), rng.uniform(*c.depth_shift) * np.median(depth[depth > 0])
+        valid = depth > 0
+        dp = a * depth * (1 + c.depth_noise * rng.normal(size=depth.shape)) + b
+        dp = np.where(valid, _blur(dp, c.blur_px), 0.0)
+        n_cam = world_to_opencv_normals(normal, v.c2w)
+        n_cam = _blur(n_cam + np.radians(c.normal_noise_deg) * rng.normal(size=n_cam.shape), c.blur_px)
+        n_cam /= np.maximum(np.linalg.norm(n_cam, axis=-1, keepdims=True), 1e-9)
+        albedo = np.clip(_blur(albedo + c.albedo_noise * rng.normal(size=albedo.shape), c.blur_px), 0, 1)
+        np.save(out / "depth" / f"{v.name}.npy", dp.astype(np.float32))
+        np.save(out / "normal" / f"{v.name}.npy", n_cam.astype(np.float32))
+        np.save(out / "albedo" / f"{v.name}.npy", albedo.astype(np.float32))
+        record["views"][v.name] = {"depth_scale": float(a), "depth_shift": float(b)}
+    (out / "PRIORS.json").write_text(json.dumps(record, indent=1))
+    return out
+
+
+def priors_are_derived(root: Path) -> bool:
+    """True when the dataset's priors were derived from ground truth (results must say so)."""
+    p = Path(root) / "priors" / "PRIORS.json"
+    return p.exists() and bool(json.loads(p.read_text()).get("derived_from_ground_truth"))
