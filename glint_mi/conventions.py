@@ -3,8 +3,8 @@
 Everything else imports these helpers instead of re-deriving them.
 
 - Units: metres; world frame right-handed, +Z up for generated rooms.
-- Depth: *planar camera z* of the first surface (Cycles' Z pass). Integrators composite the distance ``t`` along the
-  (unit) ray and convert with :func:`planar_depth`.
+- Depth: *planar camera z* of the first surface (Cycles' Z pass), measured from the camera centre. The integrator
+  composites the distance ``t`` along the (unit) ray from the pinhole and converts with z = t <d, forward>.
 - Normals: world-space unit vectors, flipped to face the incoming ray. Camera-space comparisons use OpenCV axes
   (x right, y down, z forward), see :func:`world_to_opencv_normals`.
 - Quaternions: Mitsuba ``ellipsoids`` store (x, y, z, w), identity (0, 0, 0, 1); 3DGS ``.ply`` ``rot_0..3`` store
@@ -60,11 +60,6 @@ def sh_degree_from_coeffs(n_values: int) -> int:
     if n_values % 3 or (deg + 1) ** 2 != k or not 0 <= deg <= 3:
         raise ValueError(f"{n_values} SH values per Gaussian is not 3*(deg+1)^2 for a degree 0..3")
     return deg
-
-
-def planar_depth(t, ray_d, forward):
-    """Distance ``t`` along unit ray directions ``ray_d`` [.., 3] -> planar camera z (dot with the camera forward)."""
-    return t * np.sum(np.asarray(ray_d) * np.asarray(forward), axis=-1)
 
 
 def world_to_opencv_normals(n_world: np.ndarray, cam_to_world: np.ndarray) -> np.ndarray:

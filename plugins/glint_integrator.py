@@ -119,10 +119,6 @@ class Composite:
         self.Tau = mi.Float(0.0) if Tau is None else Tau
 
     @staticmethod
-    def zeros():
-        return Composite()
-
-    @staticmethod
     def of_hit(w, t, n, c, beta, tau):
         return Composite(w * c, mi.Float(w), w * t, w * n, w * beta, w * tau)
 

@@ -93,3 +93,9 @@ def test_mitsuba_packing_round_trip_and_shell(rng):
     s = g.to_mitsuba("surfel")  # the thin axis is kept (round trip) but the shell only follows the in-plane axes
     np.testing.assert_allclose(s["kernel_scales"], np.exp(g.log_scales), rtol=1e-6)
     assert np.all(s["data"][:, 5] >= 0.3 * s["kernel_scales"][:, :2].max(1) * (1 - 1e-6))
+
+
+def test_srgb_transfer_round_trip():
+    x = np.linspace(0, 1, 1001)
+    np.testing.assert_allclose(cv.linear_to_srgb(cv.srgb_to_linear(x)), x, atol=1e-12)
+    assert abs(cv.linear_to_srgb(0.18) - 0.4613561295) < 1e-9  # 18 % grey is ~118/255 in sRGB
