@@ -64,6 +64,26 @@ def check_llvm() -> tuple[int, ...]:
         raise LLVMError(f"Dr.Jit could not load an LLVM library ({exc}). {FIX}") from None
     if version < MIN_LLVM:
         where = os.environ.get("DRJIT_LIBLLVM_PATH", "the system search path")
+        usable = candidate_libraries()
+        fix = (f"A usable LLVM is installed ({usable[0]}) but drjit was imported before glint_mi chose it: import "
+               f"glint_mi before mitsuba/drjit, export DRJIT_LIBLLVM_PATH={usable[0]}, or run "
+               f"`python -m glint_mi.setup_llvm` once (make does) so every start of this Python picks it."
+               if usable and "DRJIT_LIBLLVM_PATH" not in os.environ else FIX)
         raise LLVMError(f"Dr.Jit loaded LLVM {'.'.join(map(str, version))} from {where}; drjit 1.5 needs LLVM >= 17 "
-                        f"(LLVM 15/16 abort the process, 14 is refused). {FIX}")
+                        f"(LLVM 15/16 abort the process, 14 is refused). {fix}")
     return version
+
+
+PTH_NAME = "glint_mi_llvm.pth"
+
+
+def install_pth() -> str:
+    """Write a start-up hook into this environment's site-packages that sets DRJIT_LIBLLVM_PATH before any import
+    (so ``import mitsuba`` before ``import glint_mi`` also gets a usable LLVM)."""
+    import sysconfig
+
+    path = os.path.join(sysconfig.get_paths()["purelib"], PTH_NAME)
+    with open(path, "w") as f:
+        f.write("import glint_mi._llvm as _glint_llvm; _glint_llvm.configure_environment()\n")
+    return path
+

@@ -23,22 +23,9 @@ def contact_sheet(buffers: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from glint_mi.conventions import linear_to_srgb
+    from glint_mi.plots import show_buffers
 
-    names = [n for n in ("rgb", "depth", "normal", "transparency", "interface", "reflection", "transmission") if n in buffers]
-    fig, axes = plt.subplots(1, len(names), figsize=(2.6 * len(names), 2.0))
-    for ax, name in zip(axes, names):
-        x = buffers[name]
-        if name == "normal":
-            ax.imshow(np.clip(0.5 * x + 0.5, 0, 1))
-        elif x.shape[-1] == 1:
-            im = ax.imshow(x[..., 0], cmap="viridis" if name == "depth" else "magma")
-            fig.colorbar(im, ax=ax, fraction=0.035)
-        else:
-            ax.imshow(linear_to_srgb(x))
-        ax.set_title(name, fontsize=9)
-        ax.axis("off")
-    fig.tight_layout()
+    fig = show_buffers(buffers)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

@@ -27,3 +27,26 @@ def test_candidate_versions_parse():
     assert _llvm._version_of("/x/libLLVM.so.19.1") == (19, 1)
     assert _llvm._version_of("/usr/lib/x86_64-linux-gnu/libLLVM-15.so.1") == (15,)
     assert all(_llvm._version_of(p) >= (17,) for p in _llvm.candidate_libraries())
+
+
+def test_import_order_does_not_matter():
+    """`import mitsuba` before `import glint_mi` still runs on LLVM >= 17 (the start-up hook make installs)."""
+    import os
+    import subprocess
+    import sys
+    import sysconfig
+    if not os.path.exists(os.path.join(sysconfig.get_paths()["purelib"], _llvm.PTH_NAME)):
+        pytest.skip("start-up hook not installed (run `python -m glint_mi.setup_llvm`, as make does)")
+    env = {k: v for k, v in os.environ.items() if k != "DRJIT_LIBLLVM_PATH"}
+    code = "import mitsuba, drjit; import glint_mi; print(glint_mi.set_variant(), drjit.detail.llvm_version())"
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "llvm_ad_rgb" in r.stdout
+
+
+def test_old_llvm_message_points_at_the_installed_one(monkeypatch):
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
+    monkeypatch.setattr(dr.detail, "llvm_version", lambda: (15, 0, 6))
+    with pytest.raises(_llvm.LLVMError, match="imported before glint_mi") if _llvm.candidate_libraries() else \
+            pytest.raises(_llvm.LLVMError, match="karellen"):
+        _llvm.check_llvm()
