@@ -22,7 +22,7 @@ def show_buffers(buffers: dict, names=BUFFERS, width_per_panel: float = 2.6):
             im = ax.imshow(x[..., 0], cmap="viridis" if "depth" in name else "magma")
             fig.colorbar(im, ax=ax, fraction=0.035)
         else:
-            ax.imshow(linear_to_srgb(x))
+            ax.imshow(np.clip(linear_to_srgb(x), 0, 1))
         ax.set_title(name, fontsize=9)
         ax.axis("off")
     fig.tight_layout()
