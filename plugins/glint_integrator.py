@@ -324,8 +324,10 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 dr.enable_grad(L, aovs)
                 block = film.create_block()
                 block.set_coalesce(block.coalesce() and spp >= 4)
-                mi.ad.integrators.common.ADIntegrator._splat_to_block(block, film, pos, value=L * weight, weight=1.0, alpha=1.0,
-                                     aovs=[a * weight[0] for a in aovs], wavelengths=ray.wavelengths)
+                # (Mitsuba's RB integrators multiply float AOVs by the Spectrum weight; take its scalar channel)
+                splat = mi.ad.integrators.common.ADIntegrator._splat_to_block
+                splat(block, film, pos, value=L * weight, weight=1.0, alpha=1.0,
+                      aovs=[a * weight[0] for a in aovs], wavelengths=ray.wavelengths)
                 film.put_block(block)
                 image = film.develop()
                 dr.set_grad(image, grad_in)
