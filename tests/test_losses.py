@@ -1,0 +1,97 @@
+"""Losses: the depth loss's closed form against a least-squares solve and finite differences, the normal mask,
+the L_trans masks on hand-made depth maps, BCE."""
+import numpy as np
+import pytest
+
+import drjit as dr
+import mitsuba as mi
+
+from glint_mi.losses import bce, depth_fit, depth_loss, normal_loss, transparency_masks
+
+
+def _batch(rng, n_views=3, per=200):
+    view = np.repeat(np.arange(n_views), per)
+    D = rng.uniform(1, 5, n_views * per)
+    scale, shift = rng.uniform(0.5, 2, n_views), rng.uniform(-1, 1, n_views)
+    P = scale[view] * D + shift[view] + rng.normal(0, 0.05, D.size)
+    mask = rng.random(D.size) > 0.2
+    return D, P, mask, view
+
+
+def test_depth_fit_matches_least_squares(rng):
+    D, P, mask, view = _batch(rng)
+    w, q = depth_fit(mi.Float(D), mi.Float(P), mi.Bool(mask), mi.UInt32(view), 3)
+    w, q = np.array(w), np.array(q)
+    for v in range(3):
+        sel = (view == v) & mask
+        A = np.column_stack([D[sel], np.ones(sel.sum())])
+        (w_ref, q_ref), *_ = np.linalg.lstsq(A, P[sel], rcond=None)
+        np.testing.assert_allclose(w[view == v], w_ref, rtol=1e-4)
+        np.testing.assert_allclose(q[view == v], q_ref, atol=1e-4)
+
+
+def test_depth_loss_gradient_matches_finite_differences(rng):
+    """Detached (w, q) give the exact gradient of the minimised loss (envelope theorem)."""
+    D, P, mask, view = _batch(rng, 2, 50)
+    f = lambda d: float(np.array(depth_loss(mi.Float(d), mi.Float(P), mi.Bool(mask), mi.UInt32(view), 2))[0])
+    Dd = mi.Float(D)
+    dr.enable_grad(Dd)
+    dr.backward(depth_loss(Dd, mi.Float(P), mi.Bool(mask), mi.UInt32(view), 2))
+    g = np.array(dr.grad(Dd))
+    for i in (0, 7, 60, 99):
+        h = 1e-3
+        e = np.zeros_like(D)
+        e[i] = h
+        fd = (f(D + e) - f(D - e)) / (2 * h)
+        assert abs(g[i] - fd) < max(2e-3 * abs(fd), 1e-6), (i, g[i], fd)
+    assert np.all(g[~mask] == 0)
+
+
+def test_depth_loss_is_scale_shift_invariant(rng):
+    D, P, mask, view = _batch(rng)
+    P_exact = 1.7 * D - 0.3
+    loss = depth_loss(mi.Float(D), mi.Float(P_exact), mi.Bool(mask), mi.UInt32(view), 3)
+    assert float(np.array(loss)[0]) < 1e-8
+
+
+def test_normal_loss_cosine_mask():
+    n = mi.Vector3f([0, 0, 0], [0, 0, 0], [-1, -1, -1])
+    c = np.cos(np.radians([10, 70, 100]))
+    s = np.sin(np.radians([10, 70, 100]))
+    p = mi.Vector3f(mi.Float(s), mi.Float(np.zeros(3)), mi.Float(-c))
+    loss, mask = normal_loss(n, p, tau_n=0.3)
+    assert list(np.array(mask)) == [True, True, False]  # cos 10 deg, cos 70 deg = 0.34 >= 0.3, cos 100 deg < 0
+    _, mask5 = normal_loss(n, p, tau_n=0.5)
+    assert list(np.array(mask5)) == [True, False, False]
+    expected = np.mean([(s[i] + abs(c[i] - 1)) + (1 - c[i]) for i in (0, 1)])
+    np.testing.assert_allclose(float(np.array(loss)[0]), expected, rtol=1e-5)
+
+
+def test_transparency_masks_on_hand_made_depths():
+    H, W = 12, 16
+    D_I = np.full((H, W), 2.0)
+    D_T = np.full((H, W), 2.0)
+    D_T[:, 8:] = 3.0                      # right half: the transmission set sees something behind the interface
+    D_I[0, :] = 0                         # an invalid row
+    m_t, m_o = transparency_masks(D_T, D_I, tau_delta=0.005)
+    assert m_t[2:-1, 9:-1].min() == 1 and m_t[:, :8].max() == 0   # behind -> transparent (eroded at the border)
+    assert m_o[2:-1, 1:7].min() == 1 and m_o[:, 8:].max() == 0    # same -> opaque
+    assert m_t[0].max() == 0 and m_o[0].max() == 0                 # invalid depth -> neither
+    # albedo prior: glass = near-black albedo with a bright base colour; dark opaque objects stay opaque
+    albedo = np.full((H, W), 0.02)
+    base = np.full((H, W), 0.6)
+    base[:, 12:] = 0.1                    # dark base colour: LowA & ~HighB -> opaque even though "behind"
+    m_t, m_o = transparency_masks(D_T, D_I, 0.005, albedo=albedo, base=base)
+    assert m_t[2:-1, 9:11].min() == 1 and m_t[:, 12:].max() == 0 and m_o[2:-1, 13:-1].min() == 1
+    # view-angle weight: 1 up to 70 deg, 0 beyond 80
+    cos = np.cos(np.radians(np.full((H, W), 75.0)))
+    m_t, _ = transparency_masks(D_T, D_I, 0.005, cos_view=cos)
+    np.testing.assert_allclose(m_t[m_t > 0], 0.5)
+
+
+def test_bce_pulls_towards_its_target():
+    t = mi.Float([0.2, 0.5, 0.9])
+    dr.enable_grad(t)
+    dr.backward(bce(t, 0.98, mi.Float([1.0, 1.0, 0.0])))
+    g = np.array(dr.grad(t))
+    assert g[0] < 0 and g[1] < 0 and g[2] == 0  # descending raises t towards 0.98 where weighted
