@@ -106,12 +106,6 @@ class Dataset:
     def test_views(self) -> list[View]:
         return [self.view(n) for n in self.split["test"]]
 
-    @property
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned bounds of the points (or the cameras when there are none)."""
-        pts = self.points if self.points is not None and len(self.points) else np.array([v.c2w[:3, 3] for v in self.views])
-        return pts.min(0), pts.max(0)
-
 
 # ------------------------------------------------------------------ COLMAP
 def _read_colmap_text(folder: Path):

@@ -15,6 +15,8 @@ import numpy as np
 from . import conventions as cv
 
 PLY_BASE = ("x", "y", "z", "nx", "ny", "nz")
+# initial values of the paper (glint-method.md section 1), used wherever a value is not given
+INIT_OPACITY, INIT_SPECULAR, INIT_TRANSPARENCY = 0.5, 1e-3, 0.01
 EXTRA_FIELDS = ("specular", "transparency")  # logit-valued per-Gaussian extras written after ``opacity``
 
 
@@ -95,8 +97,9 @@ class GaussianSet:
             sh[:, 0] = (rgb - 0.5) / cv.SH_C0
         fill = lambda v, d: np.full(n, d) if v is None else np.broadcast_to(np.asarray(v, np.float64).reshape(-1), (n,))
         return cls(means=means, log_scales=np.log(scales), quats_wxyz=cv.xyzw_to_wxyz(q),
-                   logit_opacity=cv.logit(fill(opacities, 0.5)), sh=np.asarray(sh).reshape(n, -1, 3),
-                   logit_specular=cv.logit(fill(specular, 1e-3)), logit_transparency=cv.logit(fill(transparency, 0.01)))
+                   logit_opacity=cv.logit(fill(opacities, INIT_OPACITY)), sh=np.asarray(sh).reshape(n, -1, 3),
+                   logit_specular=cv.logit(fill(specular, INIT_SPECULAR)),
+                   logit_transparency=cv.logit(fill(transparency, INIT_TRANSPARENCY)))
 
     @classmethod
     def empty(cls, sh_degree: int = 0) -> "GaussianSet":
@@ -152,10 +155,10 @@ class GaussianSet:
             ks[:, 2] = np.maximum(ks[:, 2], 1e-6 * ks[:, :2].max(axis=1, initial=0.0) + 1e-12)
         get = lambda k, d: np.asarray(arrays[k], np.float64).reshape(n) if k in arrays else np.full(n, d)
         return cls(means=data[:, :3], log_scales=np.log(ks), quats_wxyz=cv.xyzw_to_wxyz(data[:, 6:10]),
-                   logit_opacity=cv.logit(get("opacities", 0.5)),
+                   logit_opacity=cv.logit(get("opacities", INIT_OPACITY)),
                    sh=np.asarray(arrays.get("sh_coeffs", np.zeros((n, 3))), np.float64).reshape(n, -1, 3),
-                   logit_specular=cv.logit(get("specular", 1e-3)),
-                   logit_transparency=cv.logit(get("transparency", 0.01)))
+                   logit_specular=cv.logit(get("specular", INIT_SPECULAR)),
+                   logit_transparency=cv.logit(get("transparency", INIT_TRANSPARENCY)))
 
     # ---------------------------------------------------------------- PLY
     def save_ply(self, path: str | os.PathLike) -> Path:
@@ -212,7 +215,8 @@ class GaussianSet:
         try:
             return cls(means=col(["x", "y", "z"]), log_scales=col(["scale_0", "scale_1", "scale_2"]),
                        quats_wxyz=col(["rot_0", "rot_1", "rot_2", "rot_3"]), logit_opacity=np.asarray(v["opacity"]),
-                       sh=sh, logit_specular=extra("specular", 1e-3), logit_transparency=extra("transparency", 0.01))
+                       sh=sh, logit_specular=extra("specular", INIT_SPECULAR),
+                       logit_transparency=extra("transparency", INIT_TRANSPARENCY))
         except GaussianDataError as exc:
             raise GaussianDataError(str(exc).replace("GaussianSet", str(path))) from None
 

@@ -34,6 +34,7 @@ kernel's own standard deviations live in the ``kernel_scales`` attribute, which 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import mitsuba as mi
 import numpy as np
@@ -77,15 +78,15 @@ def _tensor(props, name, source, width=None):
 
 def gaussian_set_from_props(props, source: str) -> GaussianSet:
     """The GaussianSet described by a shape's properties (file or tensors)."""
-    if ("filename" in props):
+    if "filename" in props:
         return GaussianSet.load_ply(str(mi.file_resolver().resolve(props.get("filename"))))
-    if ("data" in props):
+    if "data" in props:
         data = _tensor(props, "data", source, 10)
         centers, scales, quats = data[:, :3], data[:, 3:6], data[:, 6:10]
-    elif ("centers" in props):
+    elif "centers" in props:
         centers = _tensor(props, "centers", source, 3)
-        scales = _tensor(props, "scales", source, 3) if ("scales" in props) else np.full_like(centers, 0.01)
-        quats = _tensor(props, "quaternions", source, 4) if ("quaternions" in props) else None
+        scales = _tensor(props, "scales", source, 3) if "scales" in props else np.full_like(centers, 0.01)
+        quats = _tensor(props, "quaternions", source, 4) if "quaternions" in props else None
     else:
         raise GaussianDataError(f"{source}: give 'filename' (a 3DGS .ply) or 'centers' (+ scales, quaternions, ...) "
                                 f"or 'data' (N x 10).")
@@ -98,8 +99,8 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
     if n and np.any(~(scales > 0)):
         raise GaussianDataError(f"{source}: property 'scales' must be > 0 (standard deviations in metres).")
 
-    def column(name, default):
-        if not (name in props):
+    def column(name):  # None -> from_activated uses the paper's init value
+        if name not in props:
             return None
         arr = _tensor(props, name, source, 1)
         if len(arr) != n:
@@ -109,7 +110,7 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
         return arr[:, 0]
 
     sh = None
-    if ("sh_coeffs" in props):
+    if "sh_coeffs" in props:
         raw = np.asarray(props.get("sh_coeffs"), np.float64)
         raw = raw.reshape(n, -1) if n else raw.reshape(0, 3)
         try:
@@ -119,8 +120,8 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
         sh = raw.reshape(n, -1, 3)
     if n == 0:
         return GaussianSet.empty(0 if sh is None else int(round(sh.shape[1] ** 0.5)) - 1)
-    return GaussianSet.from_activated(centers, scales, quats, opacities=column("opacities", 0.5), sh=sh,
-                                      specular=column("specular", 1e-3), transparency=column("transparency", 0.01))
+    return GaussianSet.from_activated(centers, scales, quats, opacities=column("opacities"), sh=sh,
+                                      specular=column("specular"), transparency=column("transparency"))
 
 
 def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = None, shape_id: str = "",
@@ -156,7 +157,7 @@ def to_gaussian_set(shape) -> GaussianSet:
     return GaussianSet.from_mitsuba(arrays, kernel=meta.kernel)
 
 
-def save_ply(shape, path) -> "os.PathLike":
+def save_ply(shape, path) -> Path:
     """Write a shape's current Gaussians as a standard 3DGS .ply with ``specular``/``transparency`` (atomic)."""
     return to_gaussian_set(shape).save_ply(path)
 

@@ -573,29 +573,29 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             dr.backward_from(_adjoint_dot(res, adjoints), flags=flags)
             gI, gR, gTr, gR2, gD = [leaf.grad() for leaf in leaves]
 
-        weights = self._weights(I, d, active)
+        _, ks, kt, do_r, do_t = self._weights(I, d, active)
         x_i, d_r = self._secondary(I, o, d)
         g_xi = mi.Vector3f(0.0)
         # 2. second-order reflection, then its ray's dependence on the transmission pass (and x_I)
         if order2:
-            x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, weights[4])
+            x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, do_t)
             g_xt, g_dr2 = self.march(refl, x_t, d_r2, do_r2, total=R2, adjoint=gR2, ray_grad=True,
-                                     weight=weights[2] * Tr.B)
+                                     weight=kt * Tr.B)
             with dr.resume_grad():
                 x_il, Trl = mi.Point3f(x_i), Tr.leaf()
                 dr.enable_grad(x_il)
-                x_tl, d_r2l, _ = self._second_order(x_il, Trl, d, weights[4])
+                x_tl, d_r2l, _ = self._second_order(x_il, Trl, d, do_t)
                 dr.backward_from(dr.dot(g_xt, x_tl) + dr.dot(g_dr2, d_r2l), flags=flags)
                 gTr = gTr + Trl.grad()
                 g_xi += dr.grad(x_il)
         # 3. transmission and reflection replays; their rays' origin/direction adjoints
         if trans:
-            g_o, _ = self.march(trans, x_i, d, weights[4], total=Tr, adjoint=gTr, ray_grad=not self.detach_depth,
-                                weight=weights[2])
+            g_o, _ = self.march(trans, x_i, d, do_t, total=Tr, adjoint=gTr, ray_grad=not self.detach_depth,
+                                weight=kt)
             g_xi += g_o
         g_dr = mi.Vector3f(0.0)
         if refl:
-            g_o, g_dr = self.march(refl, x_i, d_r, weights[3], total=R, adjoint=gR, ray_grad=True, weight=weights[1])
+            g_o, g_dr = self.march(refl, x_i, d_r, do_r, total=R, adjoint=gR, ray_grad=True, weight=ks)
             g_xi += g_o
         # 4. secondary rays -> interface totals (normal through the mirror direction, depth through x_I)
         with dr.resume_grad():

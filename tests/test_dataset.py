@@ -205,10 +205,9 @@ def test_sfm_points_lie_on_surfaces(tmp_path):
     from glint_mi.dataset.generate import sfm_points, write_scene_files
     room = build_room(2)
     cams = trajectory(room, 10, 96, 54, 2)
-    xml = write_scene_files(tmp_path, room, cams, 16)
-    xyz, rgb, stats = sfm_points(xml, tmp_path, cams, "known", width=384, spp=128)
+    scene = glint_mi.load_file(write_scene_files(tmp_path, room, cams, 16))
+    xyz, rgb, stats = sfm_points(scene, tmp_path, cams, "known", width=384, spp=128)
     assert stats["points3D"] >= 20 and stats["mean_reprojection_error_px"] < 2.0
-    scene = glint_mi.load_file(xml)
     # distance from each point to the first surface seen from the nearest camera along the line of sight
     errs = []
     for p in xyz:
@@ -246,3 +245,23 @@ def test_derived_priors_have_the_documented_corruptions(scene_dir):
         ang = np.degrees(np.arccos(np.clip((n * n_gt).sum(-1), -1, 1)))[opaque]
         assert np.median(ang) < 12
         assert n_gt[opaque][:, 2].mean() < 0, "normals face the camera: negative z in OpenCV camera space"
+
+
+def test_prior_readers_take_exr_channels_by_name(scene_dir, tmp_path):
+    """An R,G,B EXR albedo keeps its channel order (not alphabetical); a normal EXR may use N.X/N.Y/N.Z."""
+    import OpenEXR
+    from glint_mi.dataset.priors import PriorError, load_prior
+    v = load_dataset(scene_dir).views[0]
+    rgb = np.stack([np.full((27, 48), 0.1), np.full((27, 48), 0.5), np.full((27, 48), 0.9)], -1).astype(np.float32)
+    root = tmp_path / "ds"
+    for kind, chans in (("albedo", {"R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2]}),
+                        ("normal", {"N.X": rgb[..., 0], "N.Y": rgb[..., 1], "N.Z": rgb[..., 2]})):
+        (root / "priors" / kind).mkdir(parents=True)
+        with OpenEXR.File({"type": OpenEXR.scanlineimage}, {k: np.ascontiguousarray(c) for k, c in chans.items()}) as f:
+            f.write(str(root / "priors" / kind / f"{v.name}.exr"))
+        np.testing.assert_allclose(load_prior(root, v, kind)[3, 4], [0.1, 0.5, 0.9], atol=1e-6)
+    (root / "priors" / "depth").mkdir(parents=True)
+    with OpenEXR.File({"type": OpenEXR.scanlineimage}, {"Q": np.zeros((27, 48), np.float32)}) as f:
+        f.write(str(root / "priors" / "depth" / f"{v.name}.exr"))
+    with pytest.raises(PriorError, match="a depth prior needs one of"):
+        load_prior(root, v, "depth")

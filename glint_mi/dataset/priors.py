@@ -55,7 +55,12 @@ def load_prior(root: Path, view, kind: str) -> np.ndarray | None:
 
         with OpenEXR.File(str(p), separate_channels=True) as f:
             ch = {k: np.array(v.pixels) for k, v in f.channels().items()}
-        arr = ch.get("Z", ch.get("Y")) if kind == "depth" else np.stack([ch[c] for c in sorted(ch)[:3]], -1)
+        names = {"depth": (("Z",), ("Y",), ("R",)), "normal": (("N.X", "N.Y", "N.Z"), ("X", "Y", "Z"), ("R", "G", "B")),
+                 "albedo": (("R", "G", "B"),)}[kind]
+        found = next((n for n in names if all(c in ch for c in n)), None)
+        if found is None:
+            raise PriorError(f"{p}: channels {sorted(ch)}; a {kind} prior needs one of {list(names)}.")
+        arr = ch[found[0]] if kind == "depth" else np.stack([ch[c] for c in found], -1)
     else:
         from PIL import Image
 
@@ -109,8 +114,9 @@ def _behind_glass(scene, sensor, max_steps=16):
             np.array(albedo).T.reshape(h, w, 3))
 
 
-def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None = None) -> Path:
-    """Write imperfect priors for every view of a generated scene; returns the priors folder."""
+def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None = None, scene=None) -> Path:
+    """Write imperfect priors for every view of a generated scene (``scene``: its loaded scene.xml, loaded here when
+    omitted); returns the priors folder."""
     import glint_mi
     import mitsuba as mi
 
@@ -121,7 +127,7 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None 
     rng = np.random.default_rng(seed)
     scene_dir = Path(scene_dir)
     ds = load_dataset(scene_dir)
-    scene = glint_mi.load_file(scene_dir / "scene.xml")
+    scene = scene if scene is not None else glint_mi.load_file(scene_dir / "scene.xml")
     out = scene_dir / "priors"
     for k in KINDS:
         (out / k).mkdir(parents=True, exist_ok=True)
