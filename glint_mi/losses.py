@@ -57,9 +57,11 @@ def bce(t, target: float, weight):
 
 
 def _erode(mask: np.ndarray) -> np.ndarray:
+    """3x3 erosion over the last two axes (an image [H,W] or a stack of patches [B,p,p])."""
     from scipy.ndimage import binary_erosion
 
-    return binary_erosion(mask, structure=np.ones((3, 3), bool), border_value=0)
+    structure = np.ones((1,) * (mask.ndim - 2) + (3, 3), bool)
+    return binary_erosion(mask, structure=structure, border_value=0)
 
 
 def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=None, cos_view=None,
@@ -86,3 +88,72 @@ def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=Non
         ang = np.degrees(np.arccos(np.clip(cos_view, -1, 1)))
         w = np.clip((80.0 - ang) / 10.0, 0.0, 1.0)
     return _erode(m_t) * w, _erode(m_o & ~m_t) * w
+
+
+# ------------------------------------------------------------ patch terms
+C1, C2 = 0.01 ** 2, 0.03 ** 2
+
+
+def l1(pred, target):
+    d = pred - target
+    return dr.mean(dr.abs(d.x) + dr.abs(d.y) + dr.abs(d.z)) / 3.0
+
+
+def dssim(pred, target, p: int):
+    """1 - SSIM with one window per p x p patch (rays of a patch contiguous), channels averaged.
+
+    Whole-image SSIM uses sliding 11x11 windows; on ray patches each patch is one window (uniform weights).
+    """
+    n = p * p
+    total = mi.Float(0.0)
+    for ch in range(3):
+        x, y = pred[ch], target[ch]
+        mx, my = dr.block_sum(x, n) / n, dr.block_sum(y, n) / n
+        sxx = dr.block_sum(x * x, n) / n - mx * mx
+        syy = dr.block_sum(y * y, n) / n - my * my
+        sxy = dr.block_sum(x * y, n) / n - mx * my
+        s = ((2 * mx * my + C1) * (2 * sxy + C2)) / ((mx * mx + my * my + C1) * (sxx + syy + C2))
+        total += dr.mean(s)
+    return 1.0 - total / 3.0
+
+
+def take(v, idx):
+    """Gather rows ``idx`` of a Dr.Jit value (Float or a 3-vector), differentiably."""
+    if dr.size_v(v) == 3:
+        return type(v)(*[dr.gather(mi.Float, v[k], idx) for k in range(3)])
+    return dr.gather(type(v), v, idx)
+
+
+def depth_normal_consistency(origin, d, dist, normal, valid, nb):
+    """2DGS normal consistency on patches: 1 - <n, n_depth>, n_depth from the cross product of the 3D points of
+    a pixel and its right and lower neighbours (oriented to face the camera). ``nb`` = patch_neighbours(...)."""
+    i, r, b = (mi.UInt32(x) for x in nb)
+    pts = origin + d * dist
+    P0, Pr, Pb = (take(pts, k) for k in (i, r, b))
+    n_d = dr.cross(Pr - P0, Pb - P0)
+    n_d = dr.normalize(n_d)
+    di = take(mi.Vector3f(d), i)
+    n_d = dr.select(dr.dot(n_d, di) > 0, -n_d, n_d)
+    n0 = take(mi.Vector3f(normal), i)
+    ok = take(mi.Bool(valid), i) & take(mi.Bool(valid), r) & take(mi.Bool(valid), b)
+    ok &= dr.isfinite(n_d.x)
+    term = dr.select(ok, 1.0 - dr.dot(n0, n_d), 0.0)
+    return dr.sum(term) / dr.maximum(dr.count(ok), 1)
+
+
+def transparency_regulariser(t, image_grad, nb):
+    """Entropy + L1 + edge-aware TV (weights exp(-|grad I|), computed from the photo) of the transparency t."""
+    tc = dr.clip(t, 1e-6, 1.0 - 1e-6)
+    entropy = dr.mean(-(tc * dr.log(tc) + (1.0 - tc) * dr.log(1.0 - tc)))
+    i, r, b = (mi.UInt32(x) for x in nb)
+    t0, tr, tb = (take(t, k) for k in (i, r, b))
+    w = dr.exp(-(image_grad if isinstance(image_grad, mi.Float) else mi.Float(image_grad)))
+    tv = dr.mean(w * (dr.abs(tr - t0) + dr.abs(tb - t0)))
+    return entropy + dr.mean(t) + tv
+
+
+def plausibility(depth_t, depth_i, n_t, n_i, weight, extent: float):
+    """Pull the transmission set to the interface where it is opaque: |D_T - D_I| / extent + (1 - <n_T, n_I>)."""
+    w = dr.detach(weight)
+    term = dr.abs(depth_t - dr.detach(depth_i)) / extent + (1.0 - dr.dot(n_t, dr.detach(n_i)))
+    return dr.sum(w * term) / dr.maximum(dr.sum(w), 1e-12)

@@ -27,3 +27,35 @@ def show_buffers(buffers: dict, names=BUFFERS, width_per_panel: float = 2.6):
         ax.axis("off")
     fig.tight_layout()
     return fig
+
+
+def training_curves(history: list[dict], path=None):
+    """Loss terms (log scale), Gaussians and rays/s against iteration; saved to ``path`` when given."""
+    import matplotlib
+
+    if path is not None:
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from .train import LOSS_NAMES
+
+    it = np.array([h["iteration"] for h in history])
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.4))
+    win = max(1, len(history) // 50)
+    smooth = lambda v: np.convolve(v, np.ones(win) / win, mode="valid")
+    for name in LOSS_NAMES:
+        v = np.array([h.get(name, 0.0) for h in history], float)
+        if np.any(v > 0):
+            ax[0].plot(it[win - 1:], smooth(v), label=name, lw=2 if name == "total" else 1)
+    ax[0].set_yscale("log"), ax[0].set_xlabel("iteration"), ax[0].set_title("losses (weighted)")
+    ax[0].legend(fontsize=7, ncol=2)
+    ax[1].plot(it, [h.get("gaussians", 0) for h in history])
+    ax[1].set_xlabel("iteration"), ax[1].set_title("Gaussians (kept sets)")
+    ax[2].plot(it[win - 1:], smooth(np.array([h.get("rays_per_s", 0.0) for h in history], float)))
+    ax[2].set_xlabel("iteration"), ax[2].set_title("rays / s")
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+    return fig

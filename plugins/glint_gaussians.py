@@ -78,6 +78,10 @@ def _tensor(props, name, source, width=None):
 
 def gaussian_set_from_props(props, source: str) -> GaussianSet:
     """The GaussianSet described by a shape's properties (file or tensors)."""
+    if "init" in props:
+        raise GaussianDataError(f"{source}: init='{props.get('init')}' marks an optimisation input (Gaussians made "
+                                f"from the dataset when training starts); run `python -m glint_mi.optimize` on this "
+                                f"file, or render a trained run's scene.xml instead.")
     if "filename" in props:
         return GaussianSet.load_ply(str(mi.file_resolver().resolve(props.get("filename"))))
     if "data" in props:

@@ -205,6 +205,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
     def __init__(self, props):
         super().__init__(props)
         self.max_depth = int(props.get("max_depth", 64))
+        self.dataset = str(props.get("dataset", ""))  # the training data of an optimisation scene (glint_mi.scene)
         self.ior = float(props.get("ior", 1.5))
         if not self.ior > 1.0:
             raise ValueError(f"glint: 'ior' must be > 1 (got {self.ior}).")

@@ -1,0 +1,115 @@
+"""``python -m glint_mi.optimize scene.xml``: train GLINT on a dataset, then evaluate on its test views.
+
+    python -m glint_mi.optimize scene.xml --preset quick --out runs/room      # new run
+    python -m glint_mi.optimize --resume runs/room                           # continue exactly (Ctrl-C saves)
+    python -m glint_mi.optimize scene.xml --set w_trans=0 --set components=all  # any TrainConfig field
+
+Prints a metrics table at the end; everything is written under ``--out`` (see glint_mi.train).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .config import ConfigError, TrainConfig
+
+
+def _parse_set(items) -> dict:
+    out = {}
+    for it in items or []:
+        if "=" not in it:
+            raise ConfigError(f"--set {it!r}: use FIELD=VALUE (a JSON value or a string).")
+        k, v = it.split("=", 1)
+        try:
+            out[k] = json.loads(v)
+        except json.JSONDecodeError:
+            out[k] = v
+    return out
+
+
+def build_config(args, scene_props: dict | None = None) -> TrainConfig:
+    """Preset and variant, then the --config file, the scene XML's integrator properties, flags and --set."""
+    values = {}
+    if args.config:
+        TrainConfig.load(args.config)  # validates, with errors naming the file
+        values.update(json.loads(args.config.read_text()))
+    for key in ("components", "max_order"):
+        if scene_props and key in scene_props:
+            values[key] = scene_props[key]
+    if args.iterations:
+        values["iterations"] = args.iterations
+    if args.seed is not None:
+        values["seed"] = args.seed
+    values.update(_parse_set(args.set))
+    preset = args.preset or values.pop("preset", None) or "quick"
+    variant = args.variant or values.pop("variant", None) or "supplement"
+    values.pop("preset", None), values.pop("variant", None)
+    return TrainConfig.for_preset(preset, variant, **values)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m glint_mi.optimize", description=__doc__.split("\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap.add_argument("scene", nargs="?", type=Path, help="optimisation scene XML (python -m glint_mi.scene)")
+    ap.add_argument("--out", type=Path, help="run folder (default runs/<scene folder name>)")
+    ap.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in this folder")
+    ap.add_argument("--preset", choices=["tiny", "quick", "bench"], help="size preset (default quick)")
+    ap.add_argument("--variant", choices=["supplement", "release"], help="schedule (default supplement)")
+    ap.add_argument("--config", type=Path, help="JSON of TrainConfig fields")
+    ap.add_argument("--iterations", type=int)
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a TrainConfig field")
+    ap.add_argument("--no-eval", action="store_true", help="skip the test-view evaluation at the end")
+    ap.add_argument("--no-progress", action="store_true")
+    args = ap.parse_args(argv)
+
+    from . import metrics as M
+    from .data import DatasetError
+    from .dataset.priors import PriorError
+    from .gaussians import GaussianDataError
+    from .scene import SceneError, read_scene
+    from .train import RunError, Trainer
+
+    try:
+        if args.resume:
+            run = args.resume
+            if not (run / "config.json").exists():
+                raise RunError(f"{run}/config.json: missing; --resume needs a run folder made by glint_mi.optimize.")
+            cfg = TrainConfig.load(run / "config.json")
+            trainer = Trainer(run, cfg, resume=True)
+        else:
+            if args.scene is None:
+                ap.error("give a scene XML or --resume RUN")
+            spec = read_scene(args.scene)
+            cfg = build_config(args, spec.integrator)
+            run = args.out or Path("runs") / args.scene.resolve().parent.name
+            if (run / "checkpoint.npz").exists():
+                raise RunError(f"{run}: already holds a run; continue it with --resume {run} or choose --out.")
+            trainer = Trainer(run, cfg, scene=spec)
+    except (ConfigError, SceneError, DatasetError, PriorError, GaussianDataError, RunError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    for role, what in trainer.report["init"].items():
+        if role in ("interface", "transmission", "reflection"):
+            print(f"init {role}: {what}")
+    if trainer.report.get("priors_derived_from_ground_truth"):
+        print("note: the priors were derived from ground truth (priors/PRIORS.json); results are labelled so")
+    try:
+        res = trainer.train(progress=not args.no_progress)
+    except KeyboardInterrupt:
+        return 130
+    for role, d in trainer.report["components"].items():
+        print(f"components: {'kept' if d['kept'] else 'dropped'} {role} ({d['why']})")
+    print(f"trained {res['iterations']} iterations in {res['train_s']:.1f} s -> {run}")
+    if not args.no_eval and trainer.ds.test_views:
+        from .evaluate import evaluate
+
+        out = evaluate(trainer.integ_for_eval(), trainer.ds.test_views, run, res["train_s"])
+        print(M.table({run.name: out["metrics"]}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,284 @@
+"""Optimisation scenes: ``python -m glint_mi.scene DATASET > scene.xml`` and the initial Gaussian sets.
+
+An optimisation scene is a Mitsuba XML whose ``glint`` integrator names the dataset (``<string name="dataset">``,
+absolute or relative to the XML) and holds one ``glint_gaussians`` shape per set, each either a trained ``.ply``
+(``filename``) or an initialisation rule (``init``: ``sfm`` = the dataset's SfM points, ``grid`` = the reflection
+grid of N^3 cells with K random points each, ``none`` = leave the set out). Initialisation follows the paper
+(method section 1): opacity 0.1, scale = sqrt(mean squared distance to the 3 nearest neighbours), SfM colours.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from . import conventions as cv
+from .data import Dataset, DatasetError, load_dataset
+from .gaussians import GaussianSet
+
+
+class SceneError(ValueError):
+    """Bad optimisation scene XML; the message names the file, the element and the fix."""
+
+
+@dataclasses.dataclass
+class SetSpec:
+    role: str
+    init: str = "sfm"            # sfm | grid | file | none
+    filename: Path | None = None
+    kernel: str = "surfel"
+    grid_n: int | None = None
+    grid_k: int | None = None
+
+
+@dataclasses.dataclass
+class OptimScene:
+    path: Path
+    dataset: Path
+    sets: dict[str, SetSpec]
+    integrator: dict              # the integrator's other properties (components, max_order, ...)
+
+
+# ------------------------------------------------------------------ writer
+def scene_xml(dataset: str | Path, components: str = "auto", kernel: str = "surfel", grid_n: int | None = None,
+              grid_k: int | None = None, relative_to: Path | None = None) -> str:
+    """The XML text; without ``grid_n``/``grid_k`` the training config's values apply (presets size them)."""
+    ds = Path(dataset).resolve()
+    if relative_to is not None:
+        try:
+            ds = ds.relative_to(Path(relative_to).resolve())
+        except ValueError:
+            pass
+    shape = lambda role, init, extra="": (
+        f'        <shape type="glint_gaussians" name="{role}">\n'
+        f'            <string name="init" value="{init}"/>\n'
+        f'            <string name="kernel" value="{kernel}"/>{extra}\n        </shape>')
+    grid = "".join(f'\n            <integer name="{k}" value="{v}"/>'
+                   for k, v in (("grid_n", grid_n), ("grid_k", grid_k)) if v is not None)
+    return f"""<scene version="3.0.0">
+    <!-- GLINT optimisation input: python -m glint_mi.optimize <this file>
+         init: sfm = the dataset's SfM points (SfM runs if it has none), grid = N^3 cells x K points over the scene
+         bounds (grid_n, grid_k; the paper: 32, 5; default: the training preset's), none = leave the set out. -->
+    <integrator type="glint" id="integrator">
+        <string name="dataset" value="{ds}"/>
+        <string name="components" value="{components}"/>
+{shape("interface", "sfm")}
+{shape("transmission", "sfm")}
+{shape("reflection", "grid", grid)}
+    </integrator>
+</scene>
+"""
+
+
+# ------------------------------------------------------------------ parser
+def _props(elem) -> dict:
+    out = {}
+    for child in elem:
+        if child.tag in ("string", "integer", "float", "boolean") and "name" in child.attrib:
+            v = child.attrib.get("value", "")
+            out[child.attrib["name"]] = {"integer": int, "float": float,
+                                         "boolean": lambda s: s.lower() == "true"}.get(child.tag, str)(v)
+    return out
+
+
+def read_scene(path: str | Path) -> OptimScene:
+    path = Path(path)
+    if not path.exists():
+        raise SceneError(f"{path}: no such scene file; write one with `python -m glint_mi.scene DATASET > {path}`.")
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        raise SceneError(f"{path}: not valid XML ({e}).")
+    integ = next((e for e in root.iter("integrator") if e.attrib.get("type") == "glint"), None)
+    if integ is None:
+        raise SceneError(f"{path}: no <integrator type=\"glint\">; write the file with "
+                         f"`python -m glint_mi.scene DATASET > {path.name}`.")
+    props = _props(integ)
+    if not props.get("dataset"):
+        raise SceneError(f"{path}: the glint integrator has no <string name=\"dataset\" value=\"...\"/>; add the "
+                         f"dataset folder (COLMAP, transforms.json or generated layout) to it.")
+    dataset = Path(props.pop("dataset"))
+    if not dataset.is_absolute():
+        dataset = (path.parent / dataset).resolve()
+    sets = {}
+    for shape in integ.iter("shape"):
+        role = shape.attrib.get("name", "")
+        p = _props(shape)
+        role = p.get("role", role)
+        if role not in cv.ROLES:
+            raise SceneError(f"{path}: <shape name=\"{role}\">: the name must be one of {cv.ROLES}.")
+        kernel = p.get("kernel", "surfel")
+        if kernel not in cv.KERNELS:
+            raise SceneError(f"{path}: shape '{role}': kernel '{kernel}' unknown; use one of {cv.KERNELS}.")
+        if "filename" in p:
+            f = Path(p["filename"])
+            f = f if f.is_absolute() else path.parent / f
+            if not f.exists():
+                raise SceneError(f"{path}: shape '{role}': file {f} does not exist.")
+            sets[role] = SetSpec(role, "file", f, kernel)
+            continue
+        init = p.get("init")
+        if init not in ("sfm", "grid", "none"):
+            raise SceneError(f"{path}: shape '{role}': give <string name=\"init\" value=\"sfm|grid|none\"/> or a "
+                             f"<string name=\"filename\"/> (a trained .ply); got init={init!r}.")
+        if init != "none":
+            sets[role] = SetSpec(role, init, None, kernel, p.get("grid_n"), p.get("grid_k"))
+    if "interface" not in sets:
+        raise SceneError(f"{path}: no interface set; the glint integrator needs <shape name=\"interface\">.")
+    return OptimScene(path, dataset, sets, props)
+
+
+# ---------------------------------------------------------- initialisation
+def knn_scales(points: np.ndarray, k: int = 3) -> np.ndarray:
+    """sqrt(mean squared distance to the k nearest neighbours) per point (3DGS's initial scale)."""
+    from scipy.spatial import cKDTree
+
+    if len(points) < 2:
+        return np.full(len(points), 0.01)
+    kk = min(k, len(points) - 1)
+    d, _ = cKDTree(points).query(points, k=kk + 1)
+    s = np.sqrt(np.mean(np.square(d[:, 1:]), axis=1))
+    return np.maximum(s, 1e-7)
+
+
+def scene_bounds(ds: Dataset, points: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
+    """(lo, hi, extent): a box holding the cameras and the robust bulk of the points; extent = 1.1 x the radius
+    of the camera centres' bounding sphere (3DGS's scene scale), at least 1e-3 of the box."""
+    centres = np.array([v.c2w[:3, 3] for v in ds.views])
+    parts = [centres]
+    if points is not None and len(points) >= 8:
+        parts.append(np.percentile(points, [1, 99], axis=0))
+    allp = np.concatenate(parts)
+    lo, hi = allp.min(0), allp.max(0)
+    radius = float(np.linalg.norm(centres - centres.mean(0), axis=1).max()) * 1.1
+    diag = float(np.linalg.norm(hi - lo))
+    extent = max(radius, 0.1 * diag, 1e-6)
+    pad = 0.1 * max(diag, extent)
+    return lo - pad, hi + pad, extent
+
+
+def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray]:
+    """The dataset's SfM points, or points triangulated now with pycolmap from its images and known poses."""
+    if ds.points is not None and len(ds.points):
+        return ds.points, (ds.colors if ds.colors is not None else np.full((len(ds.points), 3), 128, np.uint8))
+    from .dataset.cameras import Camera
+    from .dataset.sfm import triangulate_known_poses
+
+    if max(max(v.width, v.height) for v in ds.views) < 200:
+        log("no SfM points, and the images are too small for SIFT (< 200 px): skipping SfM")
+        return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
+    image_dirs = {v.image_path.parent for v in ds.views}
+    if len(image_dirs) != 1 or next(iter(image_dirs)).name != "images":
+        log("no SfM points and the images are not in one images/ folder: skipping SfM")
+        return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
+    cams = [Camera(v.name, v.c2w, v.width, v.height, v.K[0, 0], v.K[1, 1], v.K[0, 2], v.K[1, 2]) for v in ds.views]
+    try:
+        xyz, rgb, stats = triangulate_known_poses(next(iter(image_dirs)).parent, cams)
+    except Exception as e:  # pycolmap fails on too few features: say so and fall back
+        log(f"SfM (pycolmap, known poses) failed: {e}")
+        return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
+    log(f"SfM (pycolmap, known poses): {stats['points3D']} points, {stats['mean_reprojection_error_px']:.2f} px")
+    return xyz, rgb
+
+
+def points_set(points: np.ndarray, colors: np.ndarray, opacity: float, sh_degree: int,
+               rng: np.random.Generator) -> GaussianSet:
+    """Gaussians on points: k-NN scale, the points' colours, uniformly random orientations (surfels facing every
+    way, so that walls seen from any side are covered from the start)."""
+    s = knn_scales(points)
+    q = rng.normal(size=(len(points), 4))
+    q /= np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-12)
+    return GaussianSet.from_activated(points, np.repeat(s[:, None], 3, axis=1), quats_xyzw=q, opacities=opacity,
+                                      colors=np.asarray(colors, np.float64) / 255.0, sh_degree=sh_degree)
+
+
+def grid_points(lo, hi, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
+    """K uniform random points in each of the N^3 cells of the box [lo, hi]."""
+    cells = np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    u = (np.repeat(cells, k, axis=0) + rng.random((len(cells) * k, 3))) / n
+    return lo + u * (hi - lo)
+
+
+def ray_points(ds: Dataset, n: int, extent: float, rng: np.random.Generator):
+    """``n`` points on random training-pixel rays at random depths in [0.1, 2] x extent, with the pixel's colour
+    (a random initialisation restricted to what the cameras see; used when SfM gives too few points)."""
+    from .batch import pixel_rays
+
+    views = ds.train_views or ds.views
+    vi = rng.integers(0, len(views), n)
+    pts, cols = np.zeros((n, 3)), np.zeros((n, 3), np.uint8)
+    for k, v in enumerate(views):
+        sel = np.flatnonzero(vi == k)
+        if not len(sel):
+            continue
+        px = np.stack([rng.integers(0, v.width, len(sel)), rng.integers(0, v.height, len(sel))], -1)
+        d = pixel_rays(v, px)
+        depth = rng.uniform(0.1, 2.0, len(sel)) * extent
+        pts[sel] = v.c2w[:3, 3] + d * depth[:, None]
+        cols[sel] = (v.load_image()[px[:, 1], px[:, 0]] * 255 + 0.5).astype(np.uint8)
+    return pts, cols
+
+
+def initial_sets(scene: OptimScene, ds: Dataset, cfg, rng: np.random.Generator, log=print):
+    """The three sets at the start of training, the scene box and extent, and a report of where they came from."""
+    report = {}
+    specs = scene.sets
+    need_sfm = any(s.init == "sfm" for s in specs.values())
+    pts, cols = (sfm_points(ds, log) if need_sfm else (np.zeros((0, 3)), np.zeros((0, 3), np.uint8)))
+    lo, hi, extent = scene_bounds(ds, pts if len(pts) else None)
+    report["sfm_points"] = int(len(pts))
+    if need_sfm and len(pts) < cfg.init_min_points:
+        # too few SfM points to start from (small images): top up with random points along training rays
+        extra = cfg.init_min_points - len(pts)
+        rp, rc = ray_points(ds, extra, extent, rng)
+        pts, cols = np.concatenate([pts, rp]), np.concatenate([cols, rc])
+        report["random_points"] = int(extra)
+    sets = {}
+    for role, spec in specs.items():
+        if spec.init == "file":
+            gs = GaussianSet.load_ply(spec.filename)
+            if gs.sh_degree < cfg.sh_degree:  # pad the SH bands the config trains
+                sh = np.zeros((len(gs), (cfg.sh_degree + 1) ** 2, 3))
+                sh[:, :gs.sh.shape[1]] = gs.sh
+                gs.sh = sh
+            report[role] = f"{len(gs)} Gaussians from {spec.filename}"
+        elif spec.init == "sfm":
+            if not len(pts):
+                raise DatasetError(f"{ds.root}: the point cloud is empty (no SfM points and SfM found none) and "
+                                   f"init_min_points = 0; raise init_min_points or add sparse/0/points3D.")
+            gs = points_set(pts, cols, cfg.init_opacity, cfg.sh_degree, rng)
+            report[role] = f"{len(gs)} Gaussians from {report['sfm_points']} SfM points" + (
+                f" + {report['random_points']} random points on training rays" if "random_points" in report else "")
+        else:
+            n, k = spec.grid_n or cfg.grid_n, spec.grid_k or cfg.grid_k
+            gp = grid_points(lo, hi, n, k, rng)
+            gs = points_set(gp, np.full((len(gp), 3), 128, np.uint8), cfg.init_opacity, cfg.sh_degree, rng)
+            report[role] = f"{len(gs)} Gaussians on the {n}^3 x {k} grid"
+        sets[role] = gs
+    return sets, (lo, hi, extent), report
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m glint_mi.scene",
+                                 description="Print an optimisation scene XML for a dataset (redirect it to a file).")
+    ap.add_argument("dataset", type=Path, help="COLMAP folder, transforms.json or a generated scene folder")
+    ap.add_argument("--components", default="auto")
+    ap.add_argument("--kernel", default="surfel", choices=cv.KERNELS)
+    ap.add_argument("--grid-n", type=int, help="reflection grid cells per axis (default: the preset's; paper 32)")
+    ap.add_argument("--grid-k", type=int, help="random points per cell (default: the preset's; paper 5)")
+    args = ap.parse_args(argv)
+    try:
+        load_dataset(args.dataset)
+    except DatasetError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    sys.stdout.write(scene_xml(args.dataset, args.components, args.kernel, args.grid_n, args.grid_k))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

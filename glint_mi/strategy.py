@@ -1,0 +1,234 @@
+"""Optimiser and densification for Gaussian sets whose size changes during training.
+
+Parameters live in :class:`glint_mi.gaussians.GaussianSet` (raw, numpy float64): the renderer sees their
+activations (``to_mitsuba``), gradients come back in renderer space and :func:`raw_gradients` applies the chain rule.
+:class:`Adam` keeps per-row moments; every structural change (clone, split, prune) goes through
+:class:`Strategy`, which remaps the set, the Adam state and the gradient statistics with one index array, so the
+three can never disagree (``index[i]`` = the old row new row ``i`` comes from, -1 for a row with fresh state).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import conventions as cv
+from .gaussians import GaussianSet
+
+RAW_FIELDS = ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit_specular", "logit_transparency")
+
+
+def raw_gradients(gset: GaussianSet, grads: dict[str, np.ndarray], kernel: str) -> dict[str, np.ndarray]:
+    """Chain rule from the renderer's parameters (``to_mitsuba`` names) to the raw fields of ``gset``."""
+    n = len(gset)
+    a = gset.activated()
+    data = grads["data"].reshape(n, 10)
+    g_scale = grads["kernel_scales"].reshape(n, 3) * a["scales"]
+    if kernel == "surfel":
+        g_scale[:, 2] = 0.0  # the surfel's flat axis is not seen by the kernel
+    q = gset.quats_wxyz
+    qn_len = np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-12)
+    qhat = q / qn_len
+    g_q = cv.xyzw_to_wxyz(data[:, 6:10])
+    g_q = (g_q - qhat * np.sum(qhat * g_q, axis=1, keepdims=True)) / qn_len
+    dsig = lambda p: p * (1.0 - p)
+    return {
+        "means": data[:, :3].copy(),
+        "log_scales": g_scale,
+        "quats_wxyz": g_q,
+        "logit_opacity": grads["opacities"].reshape(n) * dsig(a["opacity"]),
+        "sh": grads["sh_coeffs"].reshape(gset.sh.shape),
+        "logit_specular": grads["specular"].reshape(n) * dsig(a["specular"]),
+        "logit_transparency": grads["transparency"].reshape(n) * dsig(a["transparency"]),
+    }
+
+
+class Adam:
+    """Adam over the raw fields of several sets; learning rates per field (``sh`` has dc / rest rates)."""
+
+    def __init__(self, lrs: dict[str, float], eps: float = 1e-15, betas=(0.9, 0.999)):
+        self.lrs, self.eps, self.b1, self.b2 = dict(lrs), eps, betas[0], betas[1]
+        self.state: dict[str, dict] = {}
+
+    def _state(self, role, gset):
+        st = self.state.get(role)
+        if st is None:
+            st = {"t": 0, **{f: (np.zeros_like(getattr(gset, f)), np.zeros_like(getattr(gset, f)))
+                             for f in RAW_FIELDS}}
+            self.state[role] = st
+        return st
+
+    def step(self, role: str, gset: GaussianSet, grads: dict[str, np.ndarray], lr_scale: dict | None = None,
+             frozen=()) -> None:
+        st = self._state(role, gset)
+        st["t"] += 1
+        t = st["t"]
+        c1, c2 = 1.0 - self.b1 ** t, 1.0 - self.b2 ** t
+        for f in RAW_FIELDS:
+            if f in frozen:
+                continue
+            g = grads[f]
+            m, v = st[f]
+            m *= self.b1
+            m += (1.0 - self.b1) * g
+            v *= self.b2
+            v += (1.0 - self.b2) * g * g
+            step = (m / c1) / (np.sqrt(v / c2) + self.eps)
+            lr = self.lrs[f] * (lr_scale or {}).get(f, 1.0)
+            if f == "sh":
+                lr = np.full((1, step.shape[1], 1), self.lrs["sh_rest"] * (lr_scale or {}).get("sh", 1.0))
+                lr[:, 0] = self.lrs["sh"] * (lr_scale or {}).get("sh", 1.0)
+            value = getattr(gset, f)
+            value -= lr * step
+
+    def remap(self, role: str, index: np.ndarray) -> None:
+        st = self.state.get(role)
+        if st is None:
+            return
+        keep = index >= 0
+        for f in RAW_FIELDS:
+            new = []
+            for arr in st[f]:
+                out = np.zeros((len(index),) + arr.shape[1:], arr.dtype)
+                out[keep] = arr[index[keep]]
+                new.append(out)
+            st[f] = tuple(new)
+
+    def reset_field(self, role: str, field: str) -> None:
+        st = self.state.get(role)
+        if st is not None:
+            st[field] = tuple(np.zeros_like(a) for a in st[field])
+
+    def state_dict(self) -> dict:
+        out = {}
+        for role, st in self.state.items():
+            out[f"{role}/t"] = np.array(st["t"])
+            for f in RAW_FIELDS:
+                out[f"{role}/{f}/m"], out[f"{role}/{f}/v"] = st[f]
+        return out
+
+    def load_state_dict(self, arrays: dict) -> None:
+        self.state = {}
+        for key in arrays:
+            if key.endswith("/t"):
+                role = key[:-2]
+                self.state[role] = {"t": int(arrays[key]),
+                                    **{f: (arrays[f"{role}/{f}/m"].copy(), arrays[f"{role}/{f}/v"].copy())
+                                       for f in RAW_FIELDS}}
+
+
+@dataclasses.dataclass
+class Event:
+    iteration: int
+    role: str
+    cloned: int = 0
+    split: int = 0
+    pruned: int = 0
+    size: int = 0
+    what: str = "densify"
+
+
+class Strategy:
+    """Clone / split on accumulated positional gradient, prune by opacity and size, opacity and tau resets."""
+
+    def __init__(self, cfg, extent: float, rng: np.random.Generator):
+        self.cfg, self.extent, self.rng = cfg, float(extent), rng
+        self.grad_sum: dict[str, np.ndarray] = {}
+        self.count: dict[str, np.ndarray] = {}
+        self.events: list[Event] = []
+        self.resets = 0
+
+    # ---------------------------------------------------------------- stats
+    def accumulate(self, role: str, n: int, g_means: np.ndarray, g_opacity: np.ndarray) -> None:
+        if role not in self.grad_sum or len(self.grad_sum[role]) != n:
+            self.grad_sum[role], self.count[role] = np.zeros(n), np.zeros(n)
+        seen = (np.abs(g_opacity) > 0) | (np.abs(g_means).sum(1) > 0)
+        self.grad_sum[role] += np.linalg.norm(g_means, axis=1) * self.extent
+        self.count[role] += seen
+
+    def mean_grad(self, role: str) -> np.ndarray:
+        return self.grad_sum[role] / np.maximum(self.count[role], 1)
+
+    # ------------------------------------------------------------- changes
+    def apply(self, role: str, gset: GaussianSet, index: np.ndarray, new: GaussianSet, adam) -> GaussianSet:
+        """Replace ``gset`` by ``new`` whose rows come from ``index`` (-1 = fresh) and keep everything aligned."""
+        adam.remap(role, index)
+        for d in (self.grad_sum, self.count):
+            if role in d:
+                d[role] = np.zeros(len(index))  # statistics restart after every change (as in 3DGS)
+        return new
+
+    def densify_and_prune(self, it: int, role: str, gset: GaussianSet, adam, prune_large: bool) -> GaussianSet:
+        cfg, n = self.cfg, len(gset)
+        if n == 0 or role not in self.grad_sum:
+            return gset
+        a = gset.activated()
+        g = self.mean_grad(role)
+        smax = a["scales"][:, :2].max(1) if cfg.kernel == "surfel" else a["scales"].max(1)
+        room = max(0, cfg.max_gaussians - n)
+        seen = self.count[role] > 0
+        top = np.quantile(g[seen], 1.0 - cfg.densify_top) if seen.any() else np.inf
+        alive = a["opacity"] >= cfg.prune_opacity  # a Gaussian about to be pruned is not densified
+        cand = np.flatnonzero(seen & alive & (g >= max(cfg.densify_grad, top)))
+        if len(cand) > room:  # the budget goes to the largest gradients
+            cand = cand[np.argsort(-g[cand])[:room]]
+        small = smax[cand] <= cfg.percent_dense * self.extent
+        clone, split = cand[small], cand[~small]
+        # split: two children sampled from the parent, scales / 1.6 (3DGS); the parent is removed
+        rot = _rotation_matrices(a["quats_xyzw"][split])
+        sc = a["scales"][split].copy()
+        if cfg.kernel == "surfel":
+            sc[:, 2] = 0.0
+        children = []
+        for _ in range(2):
+            local = self.rng.normal(size=(len(split), 3)) * sc
+            child = gset.subset(split)
+            child.means = a["means"][split] + np.einsum("nij,nj->ni", rot, local)
+            child.log_scales = gset.log_scales[split] - np.log(1.6)
+            children.append(child)
+        # prune: low opacity, too large (after the first reset), and split parents
+        drop = a["opacity"] < cfg.prune_opacity
+        if prune_large:
+            drop |= smax > cfg.prune_scale * self.extent
+        drop[split] = True
+        keep = np.flatnonzero(~drop)
+        parts = [gset.subset(keep), gset.subset(clone)] + children
+        index = np.concatenate([keep, clone, np.full(2 * len(split), -1)])
+        if len(index) == 0:  # never leave a set empty: keep its most opaque Gaussian
+            best = np.array([int(np.argmax(a["opacity"]))])
+            parts, index = [gset.subset(best)], best
+        new = GaussianSet.concatenate(parts)
+        self.events.append(Event(it, role, len(clone), len(split), int(drop.sum()) - len(split), len(new)))
+        return self.apply(role, gset, index, new, adam)
+
+    def reset(self, it: int, role: str, gset: GaussianSet, adam, fields=("logit_opacity", "logit_transparency")):
+        """Opacity and transparency reset to <= 0.01 (the logits are clamped; the moments restart)."""
+        cap = cv.logit(0.01)
+        for f in fields:
+            v = getattr(gset, f)
+            np.minimum(v, cap, out=v)
+            adam.reset_field(role, f)
+        self.resets += 1
+        self.events.append(Event(it, role, size=len(gset), what="reset"))
+
+    def state_dict(self) -> dict:
+        out = {"resets": np.array(self.resets)}
+        for role in self.grad_sum:
+            out[f"{role}/grad_sum"], out[f"{role}/count"] = self.grad_sum[role], self.count[role]
+        return out
+
+    def load_state_dict(self, arrays: dict) -> None:
+        self.resets = int(arrays.get("resets", 0))
+        for key, v in arrays.items():
+            if key.endswith("/grad_sum"):
+                role = key.split("/")[0]
+                self.grad_sum[role], self.count[role] = v.copy(), arrays[f"{role}/count"].copy()
+
+
+def _rotation_matrices(q_xyzw: np.ndarray) -> np.ndarray:
+    x, y, z, w = q_xyzw.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], 1)

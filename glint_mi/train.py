@@ -1,0 +1,506 @@
+"""The staged GLINT optimisation (glint-method.md sections 3-5) on ray patches, with resumable runs.
+
+One iteration: draw ``patches`` p x p patches across training views -> ``integrator.trace`` (primal) -> losses on
+Dr.Jit leaves of the traced buffers -> their adjoints -> ``integrator.backward`` (path replay, constant memory) ->
+renderer-space gradients -> chain rule to raw parameters (:func:`glint_mi.strategy.raw_gradients`) -> Adam (numpy).
+Structural changes (densify, prune, resets, dropping a set) go through :class:`glint_mi.strategy.Strategy`.
+
+A run folder holds ``config.json``, ``checkpoint.npz`` (atomic; everything to continue exactly, RNG included),
+``log.csv`` (losses per logged iteration), ``report.json`` (initialisation, component decisions and why,
+densification events) and, at the end, ``model/`` (3DGS .ply per set + a renderable ``scene.xml``) and the
+evaluation of :mod:`glint_mi.evaluate`.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import conventions as cv
+from . import losses as L
+from .batch import Batch, RayBank, patch_neighbours
+from .config import TrainConfig
+from .data import Dataset, DatasetError, load_dataset
+from .gaussians import GaussianSet
+from .render import aligned, floats
+from .scene import OptimScene, initial_sets, read_scene
+from .strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
+
+PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
+LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "normal", "consistency", "trans", "treg", "plausibility")
+
+
+class RunError(ValueError):
+    """Bad run folder / resume request; the message names the file and the fix."""
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    tmp = path.with_name(path.name + ".partial")
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    atomic_write_bytes(path, text.encode())
+
+
+def sets_scene_dict(sets: dict[str, GaussianSet], kernel: str, **integrator_props) -> dict:
+    from glint_mi_plugins.glint_gaussians import make_shape
+
+    integ = {"type": "glint", **integrator_props}
+    for role, gs in sets.items():
+        integ[role] = make_shape(gs, kernel=kernel, role=role, shape_id=role)
+    return {"type": "scene", "integrator": integ}
+
+
+class Trainer:
+    def __init__(self, run_dir: str | Path, cfg: TrainConfig, scene: OptimScene | None = None,
+                 dataset: Dataset | None = None, log=print, resume: bool = False):
+        import glint_mi
+
+        glint_mi.set_variant("llvm_ad_rgb")
+        self.run_dir, self.cfg, self.log = Path(run_dir), cfg, log
+        self.scene_spec = scene
+        self.ds = dataset
+        self.it = 0
+        self.elapsed = 0.0
+        self.history: list[dict] = []
+        self.report: dict = {"components": {}, "init": {}, "events": []}
+        self.rng = np.random.default_rng(cfg.seed)
+        self.stop_requested = False
+        if resume:
+            self._load_checkpoint()
+        else:
+            self._fresh()
+        self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=True)
+        self.report["priors"] = sorted(self.bank.has)
+        from .dataset.priors import priors_are_derived
+
+        self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
+        self._build()
+
+    # ------------------------------------------------------------ set-up
+    def _fresh(self):
+        if self.scene_spec is None:
+            raise RunError("a new run needs an optimisation scene (python -m glint_mi.scene DATASET > scene.xml).")
+        if self.ds is None:
+            self.ds = load_dataset(self.scene_spec.dataset)
+        if not self.ds.train_views:
+            raise DatasetError(f"{self.ds.root}: no training views (check split.json).")
+        sets, (lo, hi, extent), rep = initial_sets(self.scene_spec, self.ds, self.cfg, self.rng, self.log)
+        roles = self.cfg.roles()
+        self.sets = {r: s for r, s in sets.items() if r in roles}
+        self.bounds = (lo, hi)
+        self.extent = float(extent)
+        self.report["init"] = {**rep, "extent": self.extent, "box": [lo.tolist(), hi.tolist()]}
+        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps)
+        self.strategy = Strategy(self.cfg, self.extent, np.random.default_rng([self.cfg.seed, 1]))  # own stream
+        self.dropped: dict[str, str] = {}
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.cfg.save(self.run_dir / "config.json")
+        atomic_write_text(self.run_dir / "run.json", json.dumps(
+            {"scene": str(self.scene_spec.path), "dataset": str(self.ds.root)}, indent=1))
+
+    def _lrs(self):
+        c = self.cfg
+        return {"means": c.lr_position * self.extent, "log_scales": c.lr_scale, "quats_wxyz": c.lr_rotation,
+                "logit_opacity": c.lr_opacity, "sh": c.lr_sh_dc, "sh_rest": c.lr_sh_rest,
+                "logit_specular": c.lr_specular, "logit_transparency": c.lr_transparency}
+
+    def _build(self):
+        """(Re)create the Mitsuba scene for the current sets (once per run; sizes change through traverse)."""
+        import mitsuba as mi
+
+        props = {"components": "auto" if self.cfg.components == "auto" else "all", "max_order": self.cfg.max_order,
+                 "max_hits": self.cfg.max_hits,
+                 "aovs": "depth,normal,transparency,interface,alpha,weights"}
+        self.scene = mi.load_dict(sets_scene_dict(self.sets, self.cfg.kernel, **props))
+        self.integ = self.scene.integrator()
+        self.params = mi.traverse(self.integ)
+        self._push()
+
+    def _push(self):
+        import drjit as dr
+        import mitsuba as mi
+
+        for role, gs in self.sets.items():
+            arrays = gs.to_mitsuba(self.cfg.kernel)
+            for k in PARAM_KEYS:
+                key = f"{role}.{k}"
+                self.params[key] = floats(arrays[k].ravel())
+                dr.enable_grad(self.params[key])
+        self.params.update()
+
+    # ---------------------------------------------------------- schedule
+    def stage(self, it: int | None = None) -> dict:
+        """Which sets are traced and trained at iteration ``it``, which loss terms are on."""
+        c, it = self.cfg, self.it if it is None else it
+        on = lambda f: it >= c.at(f)
+        traced = {"interface"}
+        if "transmission" in self.sets and "transmission" not in self.dropped and on(max(c.warmup, c.transmission_from)):
+            traced.add("transmission")
+        if "reflection" in self.sets and "reflection" not in self.dropped and on(max(c.warmup, c.reflection_from)):
+            traced.add("reflection")
+        trained = set(traced)
+        if c.refine_from < 1.0 and on(c.refine_from) and len(traced) > 1:
+            trained.discard("interface")  # supplement: the interface is frozen in the refine stage
+        has_t = "transmission" in traced
+        return {"traced": traced, "trained": trained, "name": "warm-up" if traced == {"interface"} and not on(c.warmup)
+                else ("refine" if "interface" not in trained else "joint"),
+                "depth": c.w_depth > 0 and "depth" in self.bank.has,
+                "normal": c.w_normal > 0 and "normal" in self.bank.has and on(c.normal_from),
+                "consistency": c.w_consistency > 0,
+                "direct": has_t and c.w_direct > 0,
+                "trans": has_t and c.w_trans > 0 and on(c.trans_from),
+                "treg": has_t and c.w_treg > 0 and on(c.treg_from),
+                "plausibility": has_t and c.w_plausibility > 0 and on(c.plausibility_from),
+                "sh_degree": min(c.sh_degree, it // c.every(c.sh_every))}
+
+    # --------------------------------------------------------- one step
+    def step(self) -> dict:
+        import drjit as dr
+        import mitsuba as mi
+
+        c, st = self.cfg, self.stage()
+        self.integ.enabled = set(st["traced"])
+        b = self.bank.sample(self.rng, c.patches, c.patch)
+        ray = mi.Ray3f(mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction)))
+        fwd = mi.Vector3f(*floats(b.axes[:, :, 2]))
+        need = {"trans_direct"} if "transmission" in st["traced"] else set()
+        active = mi.Bool(True)
+        out = self.integ.trace(ray, active, need=need, forward=fwd)
+        dr.eval(out["_passes"])
+        terms, adjoints, stats = self._losses(b, out, st, ray, fwd)
+        self.integ.backward(ray, active, out, adjoints, forward=fwd)
+        self._update(st)
+        return {**terms, **stats}
+
+    def _leaf(self, x):
+        import drjit as dr
+
+        y = type(x)(dr.detach(x))
+        dr.enable_grad(y)
+        return y
+
+    def _losses(self, b: Batch, out: dict, st: dict, ray, fwd):
+        import drjit as dr
+        import mitsuba as mi
+
+        c = self.cfg
+        p, M = b.patch, len(b.flat)
+        nb = patch_neighbours(b.patches, p)
+        gt = mi.Color3f(*floats(b.rgb))
+        terms = {k: 0.0 for k in LOSS_NAMES}
+        stats = {}
+        with dr.resume_grad():
+            rgb = self._leaf(mi.Color3f(out["rgb"]))
+            depth, normal, t = self._leaf(out["depth"]), self._leaf(out["normal"]), self._leaf(out["transparency"])
+            leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
+            A = dr.detach(out["alpha"])
+            parts = {"l1": c.w_l1 * L.l1(rgb, gt), "dssim": c.w_dssim * L.dssim(rgb, gt, p)}
+            if st["consistency"]:
+                dist = depth / dr.dot(ray.d, fwd)
+                parts["consistency"] = c.w_consistency * L.depth_normal_consistency(
+                    ray.o, ray.d, dist, normal, A > 0.5, nb)
+            if st["depth"]:
+                prior = floats(b.depth_prior)
+                mask = (prior > 0) & (A > 0.5)
+                vid = mi.UInt32(aligned(b.view, np.uint32))
+                parts["depth"] = c.w_depth * L.depth_loss(depth, prior, mask, vid, len(self.bank.views))
+            if st["normal"]:
+                axes = [mi.Vector3f(*floats(b.axes[:, :, k])) for k in range(3)]
+                n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
+                prior = mi.Vector3f(*floats(b.normal_prior))
+                valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
+                parts["normal"] = c.w_normal * L.normal_loss(n_cv, prior, c.tau_n, valid)[0]
+            if "transmission" in st["traced"]:
+                Dc, Dd, Dn, DA = out["trans_direct"]
+                Dc, Dd, Dn, DA = self._leaf(mi.Color3f(Dc)), self._leaf(Dd), self._leaf(Dn), self._leaf(DA)
+                leaves["trans_direct"] = (Dc, Dd, Dn, DA)
+                if st["direct"]:
+                    parts["direct"] = c.w_direct * (c.w_l1 * L.l1(Dc, gt) + c.w_dssim * L.dssim(Dc, gt, p))
+                    if st["consistency"]:
+                        parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
+                            L.depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
+                                                       dr.detach(DA) > 0.5, nb)
+                if st["trans"] or st["plausibility"]:
+                    w_t, w_o = self._trans_masks(b, out, nb)
+                    stats["mask_t"] = float(w_t.mean())
+                    if st["trans"]:
+                        parts["trans"] = c.w_trans * (L.bce(t, 0.98, floats(w_t)) + L.bce(t, 0.02, floats(w_o)))
+                    if st["plausibility"]:
+                        parts["plausibility"] = c.w_plausibility * L.plausibility(
+                            Dd, out["depth"], Dn, out["normal"], floats(w_o), self.extent)
+                if st["treg"]:
+                    img = b.rgb.reshape(b.patches, p, p, 3)
+                    edge = (np.abs(img[:, :-1, 1:] - img[:, :-1, :-1]).mean(-1)
+                            + np.abs(img[:, 1:, :-1] - img[:, :-1, :-1]).mean(-1))  # at the nb pixels, in order
+                    grad_i = edge.reshape(-1) * 10.0
+                    parts["treg"] = c.w_treg * L.transparency_regulariser(t, floats(grad_i), nb)
+            total = sum(parts.values())
+            dr.backward(total)
+            adjoints = {}
+            for k, v in leaves.items():
+                adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
+            for k, v in parts.items():
+                terms[k] = float(v[0]) if dr.width(v) else 0.0
+            terms["total"] = float(total[0])
+        # what each component contributes (evidence for components: auto)
+        w = out["weights"]
+        lum = lambda x: np.asarray(x).mean(0) if np.asarray(x).ndim == 2 else np.asarray(x)
+        img_e = max(float(lum(np.array(out["rgb"])).mean()), 1e-6)
+        stats["share_reflection"] = float(np.mean(np.array(w[1]) * lum(np.array(out["reflection"])))) / img_e
+        stats["share_transmission"] = float(np.mean(np.array(w[2]) * lum(np.array(out["transmission"])))) / img_e
+        return terms, adjoints, stats
+
+    def _trans_masks(self, b: Batch, out: dict, nb):
+        """L_trans masks of the batch (numpy, no gradient) on the p x p patches."""
+        Dc, Dd, _, _ = out["trans_direct"]
+        P, p = b.patches, b.patch
+        shape = (P, p, p)
+        dI = np.array(out["depth"]).reshape(shape)
+        dT = np.array(Dd).reshape(shape)
+        albedo = b.albedo_prior.mean(1).reshape(shape) if b.albedo_prior is not None else None
+        cI = np.array(out["interface"])
+        base = (cI.mean(0) if cI.ndim == 2 else cI).reshape(shape) if albedo is not None else None
+        n = np.array(out["normal"])
+        n = n.T if n.shape[0] == 3 else n
+        cos = -np.sum(n * b.direction, axis=1).reshape(shape)
+        cos = np.where(np.linalg.norm(n, axis=1).reshape(shape) > 0, cos, 1.0)
+        w_t, w_o = L.transparency_masks(dT, dI, self.cfg.tau_delta * self.extent, albedo, base, cos)
+        # weight M_t by how much the transmitted path improves the photometric fit
+        gt = b.rgb
+        cIm = cI.T if cI.shape[0] == 3 else cI
+        cT = np.array(Dc)
+        cT = cT.T if cT.shape[0] == 3 else cT
+        e_i = np.abs(cIm - gt).mean(1)
+        e_t = np.abs(cT - gt).mean(1)
+        improve = np.clip((e_i - e_t) / np.maximum(e_i, 1e-3), 0.0, 1.0).reshape(shape)
+        return (w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32)
+
+    def _update(self, st):
+        import drjit as dr
+
+        c = self.cfg
+        frac = self.it / max(c.iterations - 1, 1)
+        lr_pos = np.exp((1 - frac) * np.log(c.lr_position) + frac * np.log(c.lr_position_final)) / c.lr_position
+        for role in list(self.sets):
+            gs = self.sets[role]
+            grads = {k: np.array(dr.grad(self.params[f"{role}.{k}"]), np.float64) for k in PARAM_KEYS}
+            for k in PARAM_KEYS:
+                dr.clear_grad(self.params[f"{role}.{k}"])
+            if role not in st["trained"] or role not in st["traced"]:
+                continue
+            g = raw_gradients(gs, grads, c.kernel)
+            g["sh"][:, (st["sh_degree"] + 1) ** 2:] = 0.0
+            if role != "interface":  # beta and tau are interface attributes (the release's order 2 uses G_trans beta)
+                g["logit_transparency"][:] = 0.0
+                if not (role == "transmission" and c.max_order == 2):
+                    g["logit_specular"][:] = 0.0
+            for f, v in g.items():
+                np.nan_to_num(v, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+            if self._densifying():
+                self.strategy.accumulate(role, len(gs), g["means"], g["logit_opacity"])
+            self.adam.step(role, gs, g, {"means": lr_pos})
+
+    def _densifying(self, it=None):
+        c, it = self.cfg, self.it if it is None else it
+        return c.at(c.densify_from) <= it < c.at(c.densify_until)
+
+    # ---------------------------------------------------- structure steps
+    def _structure(self, st):
+        """Densify / prune / reset on their schedules and the components: auto decisions."""
+        c, it = self.cfg, self.it + 1
+        if self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from):
+            for role in sorted(st["trained"] & set(self.sets)):
+                self.sets[role] = self.strategy.densify_and_prune(it, role, self.sets[role], self.adam,
+                                                                  prune_large=self.strategy.resets > 0)
+        if c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0:
+            for role in sorted(st["trained"] & set(self.sets)):
+                fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
+                self.strategy.reset(it, role, self.sets[role], self.adam, fields)
+        self._auto_components(st)
+        self._push()  # new values (and sizes) to the renderer; a `data` change rebuilds the sets' BVHs
+
+    def _auto_components(self, st) -> None:
+        """components: auto — keep transmission / reflection only where the evidence calls for them."""
+        c = self.cfg
+        if c.components != "auto":
+            return
+        # decided once each set had time to learn: at the end of densification (the paper's 21k of 60k)
+        decide_at = {"transmission": c.at(max(c.densify_until, c.trans_from + 0.1)),
+                     "reflection": c.at(max(c.densify_until, c.reflection_from + 0.1))}
+        recent = self.history[-max(5, c.log_every * 5):]
+        for role, at in decide_at.items():
+            if role not in self.sets or role in self.report["components"] or self.it + 1 != at:
+                continue
+            share = np.mean([h.get(f"share_{role}", 0.0) for h in recent]) if recent else 0.0
+            if role == "transmission":
+                cover = np.mean([h.get("mask_t", 0.0) for h in recent]) if recent else 0.0
+                keep = cover >= c.auto_trans_min and share >= c.auto_contrib_min
+                why = (f"L_trans transparent mask covers {100 * cover:.2f} % of sampled pixels "
+                       f"(threshold {100 * c.auto_trans_min:.2f} %), share of image energy {100 * share:.2f} %")
+            else:
+                keep = share >= c.auto_contrib_min
+                why = (f"share of image energy k_s c_R = {100 * share:.2f} % "
+                       f"(threshold {100 * c.auto_contrib_min:.2f} %)")
+            self.report["components"][role] = {"kept": bool(keep), "iteration": self.it + 1, "why": why}
+            self.log(f"components auto: {'keep' if keep else 'drop'} {role}: {why}")
+            if not keep:
+                self.dropped[role] = why
+
+    # ------------------------------------------------------------- loop
+    def train(self, progress: bool = True) -> dict:
+        from tqdm.auto import tqdm
+
+        c = self.cfg
+        start = time.perf_counter() - self.elapsed
+        rays = c.patches * c.patch ** 2
+        bar = tqdm(total=c.iterations, initial=self.it, disable=not progress, unit="it", dynamic_ncols=True)
+        old = signal.getsignal(signal.SIGINT)
+        interrupted = False
+        try:
+            while self.it < c.iterations:
+                t0 = time.perf_counter()
+                st = self.stage()
+                rec = self.step()
+                self._structure(st)
+                dt = time.perf_counter() - t0
+                rec.update(iteration=self.it, stage=st["name"], rays_per_s=rays / max(dt, 1e-9),
+                           gaussians=sum(len(s) for r, s in self.sets.items() if r not in self.dropped))
+                self.history.append(rec)
+                self.it += 1
+                self.elapsed = time.perf_counter() - start
+                bar.update(1)
+                if self.it % c.log_every == 0 or self.it == c.iterations:
+                    bar.set_postfix(loss=f"{rec['total']:.4f}", rays_s=f"{rec['rays_per_s']:.0f}",
+                                    stage=st["name"], n=rec["gaussians"])
+                if self.it % c.checkpoint_every == 0 and self.it < c.iterations:
+                    self.save_checkpoint()
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            bar.close()
+            signal.signal(signal.SIGINT, old)
+        self.elapsed = time.perf_counter() - start
+        self.save_checkpoint()
+        if interrupted:
+            self.log(f"interrupted at iteration {self.it}: checkpoint saved; continue with "
+                     f"`python -m glint_mi.optimize --resume {self.run_dir}`")
+            raise KeyboardInterrupt
+        self.save_model()
+        return {"iterations": self.it, "train_s": self.elapsed}
+
+    def integ_for_eval(self):
+        """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
+        self.integ.enabled = set(self.active_sets())
+        return self.integ
+
+    # ------------------------------------------------------ persistence
+    def active_sets(self) -> dict[str, GaussianSet]:
+        return {r: s for r, s in self.sets.items() if r not in self.dropped}
+
+    def save_checkpoint(self) -> Path:
+        arrays = {"iteration": np.array(self.it), "elapsed": np.array(self.elapsed), "extent": np.array(self.extent),
+                  "bounds": np.stack(self.bounds), "rng": np.array(json.dumps(self.rng.bit_generator.state)),
+                  "strategy_rng": np.array(json.dumps(self.strategy.rng.bit_generator.state)),
+                  "dropped": np.array(json.dumps(self.dropped)), "report": np.array(json.dumps(self.report)),
+                  "history": np.array(json.dumps(self.history))}
+        for role, gs in self.sets.items():
+            for f in RAW_FIELDS:
+                arrays[f"set/{role}/{f}"] = getattr(gs, f)
+        arrays.update({f"adam/{k}": v for k, v in self.adam.state_dict().items()})
+        arrays.update({f"strategy/{k}": v for k, v in self.strategy.state_dict().items()})
+        buf = io.BytesIO()
+        np.savez(buf, **arrays)
+        path = self.run_dir / "checkpoint.npz"
+        atomic_write_bytes(path, buf.getvalue())
+        self._write_log()
+        return path
+
+    def _load_checkpoint(self):
+        path = self.run_dir / "checkpoint.npz"
+        if not path.exists():
+            raise RunError(f"{path}: no checkpoint to resume; start the run with `python -m glint_mi.optimize "
+                           f"scene.xml --out {self.run_dir}`.")
+        info = json.loads((self.run_dir / "run.json").read_text())
+        self.scene_spec = read_scene(info["scene"]) if Path(info["scene"]).exists() else None
+        if self.ds is None:
+            self.ds = load_dataset(info["dataset"])
+        z = dict(np.load(path, allow_pickle=False))
+        self.it, self.elapsed = int(z["iteration"]), float(z["elapsed"])
+        self.extent = float(z["extent"])
+        self.bounds = (z["bounds"][0], z["bounds"][1])
+        self.rng.bit_generator.state = json.loads(str(z["rng"]))
+        self.dropped = json.loads(str(z["dropped"]))
+        self.report = json.loads(str(z["report"]))
+        self.history = json.loads(str(z["history"]))
+        roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)
+        self.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
+        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps)
+        self.adam.load_state_dict({k[5:]: v for k, v in z.items() if k.startswith("adam/")})
+        srng = np.random.default_rng()
+        srng.bit_generator.state = json.loads(str(z["strategy_rng"]))
+        self.strategy = Strategy(self.cfg, self.extent, srng)
+        self.strategy.load_state_dict({k[9:]: v for k, v in z.items() if k.startswith("strategy/")})
+        self.log(f"resumed {self.run_dir} at iteration {self.it}")
+
+    def _write_log(self):
+        rows = self.history
+        if rows:
+            keys = ["iteration", "stage", *LOSS_NAMES, "rays_per_s", "gaussians", "share_reflection",
+                    "share_transmission", "mask_t"]
+            buf = io.StringIO()
+            w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
+            w.writeheader()
+            w.writerows(rows)
+            atomic_write_text(self.run_dir / "log.csv", buf.getvalue())
+        rep = dict(self.report)
+        rep["events"] = [dataclasses.asdict(e) for e in self.strategy.events]
+        rep["dropped"] = self.dropped
+        rep["sizes"] = {r: len(s) for r, s in self.active_sets().items()}
+        atomic_write_text(self.run_dir / "report.json", json.dumps(rep, indent=1))
+
+    def save_model(self) -> Path:
+        """model/<role>.ply (3DGS + specular/transparency) and model/scene.xml renderable by Mitsuba."""
+        model = self.run_dir / "model"
+        model.mkdir(exist_ok=True)
+        sets = self.active_sets()
+        for role, gs in sets.items():
+            gs.save_ply(model / f"{role}.ply")
+        for role in set(self.sets) - set(sets):
+            (model / f"{role}.ply").unlink(missing_ok=True)
+        v = (self.ds.test_views or self.ds.train_views)[0]
+        from .dataset.cameras import Camera
+        from .dataset.generate import sensor_xml
+
+        cam = Camera(v.name, v.c2w, v.width, v.height, v.K[0, 0], v.K[1, 1], v.K[0, 2], v.K[1, 2])
+        shapes = "\n".join(
+            f'        <shape type="glint_gaussians" name="{r}">\n'
+            f'            <string name="filename" value="{r}.ply"/>\n'
+            f'            <string name="kernel" value="{self.cfg.kernel}"/>\n        </shape>' for r in sets)
+        xml = (f'<scene version="3.0.0">\n    <!-- trained by glint_mi ({self.it} iterations); render with '
+               f'mitsuba or python -m glint_mi.evaluate -->\n'
+               f'    <integrator type="glint" id="integrator">\n'
+               f'        <string name="dataset" value="{self.ds.root.resolve()}"/>\n'
+               f'        <string name="components" value="auto"/>\n'
+               f'        <integer name="max_order" value="{self.cfg.max_order}"/>\n'
+               f'        <integer name="max_hits" value="{self.cfg.max_hits}"/>\n{shapes}\n    </integrator>\n'
+               f'{sensor_xml(cam, 1)}</scene>\n')
+        atomic_write_text(model / "scene.xml", xml)
+        self._write_log()
+        if self.history:
+            from .plots import training_curves
+
+            training_curves(self.history, self.run_dir / "curves.png")
+        return model

@@ -1,0 +1,214 @@
+"""The optimisation: ray generation, chain rule, densify/prune bookkeeping, patch losses, resume, bad input, and one
+end-to-end run on a tiny generated room (CLI: scene helper -> optimize -> evaluate)."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+import pytest
+
+from glint_mi import losses as L
+from glint_mi.batch import RayBank, patch_neighbours, pixel_rays
+from glint_mi.config import ConfigError, TrainConfig
+from glint_mi.data import DatasetError, load_dataset
+from glint_mi.dataset.generate import Preset, make_scene
+from glint_mi.gaussians import GaussianSet
+from glint_mi.render import camera_rays
+from glint_mi.scene import SceneError, read_scene, scene_xml
+from glint_mi.strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
+from glint_mi.train import Trainer
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory):
+    out = tmp_path_factory.mktemp("train") / "room"
+    make_scene(out, seed=0, preset=Preset.named("tiny"), sfm="none")
+    (out.parent / "scene.xml").write_text(scene_xml(out))
+    return out
+
+
+def tiny_cfg(**kw):
+    return TrainConfig.for_preset("tiny", **{"log_every": 1000, **kw})
+
+
+def test_pixel_rays_match_mitsuba_sensor(room):
+    v = load_dataset(room).views[3]
+    sensor = mi.load_dict(v.sensor_dict())
+    px = np.array([[0, 0], [v.width - 1, v.height - 1], [10, 7], [v.width // 2, v.height // 2]])
+    ray, _ = camera_rays(sensor, px)
+    ref = np.array(ray.d).T if np.array(ray.d).shape[0] == 3 else np.array(ray.d)
+    assert np.allclose(pixel_rays(v, px), ref, atol=1e-5)
+
+
+def test_raw_gradients_chain_rule_matches_finite_differences(rng):
+    """A linear functional of the renderer's arrays: raw_gradients == central FD through to_mitsuba (1e-3 rel)."""
+    g = GaussianSet.from_activated(rng.normal(size=(5, 3)), rng.uniform(0.05, 0.2, (5, 3)), rng.normal(size=(5, 4)),
+                                   opacities=rng.uniform(0.2, 0.8, 5), colors=rng.uniform(0, 1, (5, 3)),
+                                   specular=0.3, transparency=0.6, sh_degree=1)
+    g.quats_wxyz *= 1.7  # not normalised: the chain rule must divide by the norm
+    arrays = g.to_mitsuba("surfel")
+    W = {k: rng.normal(size=v.shape) for k, v in arrays.items()}
+    W["data"][:, 3:6] = 0.0  # shell scales are not seen by the kernel (no gradient by design)
+    W["kernel_scales"][:, 2] = 0.0  # a surfel's flat axis
+    f = lambda gs: sum(float(np.sum(W[k] * gs.to_mitsuba("surfel")[k].astype(np.float64))) for k in W)
+    grads = raw_gradients(g, {k: W[k].astype(np.float64) for k in W}, "surfel")
+    for field in RAW_FIELDS:
+        base = getattr(g, field).copy()
+        for idx in [(0,), (3,)]:
+            flat = base.reshape(len(g), -1)
+            j = idx[0], flat.shape[1] - 1
+            h = 1e-2
+            vals = []
+            for s in (1, -1):
+                b = flat.copy()
+                b[j] += s * h
+                setattr(g, field, b.reshape(base.shape))
+                vals.append(f(g))
+            setattr(g, field, base.copy())
+            fd = (vals[0] - vals[1]) / (2 * h)
+            an = grads[field].reshape(len(g), -1)[j]
+            assert abs(fd - an) <= 2e-2 * max(1.0, abs(fd)), (field, j, fd, an)
+
+
+def test_densify_prune_keeps_set_adam_and_stats_aligned(rng):
+    cfg = tiny_cfg(densify_top=0.5, densify_grad=0.0, prune_opacity=0.3, max_gaussians=100)
+    n = 20
+    op = np.where(np.arange(n) % 5 == 0, 0.1, 0.9)  # rows 0, 5, 10, 15 are pruned
+    scales = np.where((np.arange(n) % 2 == 0)[:, None], 0.001, 0.5) * np.ones((n, 3))
+    g = GaussianSet.from_activated(rng.normal(size=(n, 3)), scales, opacities=op)
+    g.logit_specular[:] = np.arange(n)  # a row tag that survives copies
+    adam = Adam({"means": 1, "log_scales": 1, "quats_wxyz": 1, "logit_opacity": 1, "sh": 1, "sh_rest": 1,
+                 "logit_specular": 1, "logit_transparency": 1})
+    adam._state("interface", g)
+    adam.state["interface"]["logit_specular"][0][:] = np.arange(n) + 100  # moments tagged by row
+    strat = Strategy(cfg, extent=1.0, rng=np.random.default_rng(0))
+    grad = np.zeros((n, 3))
+    grad[:, 0] = np.arange(n)  # the top half by gradient: rows 10..19
+    strat.accumulate("interface", n, grad, np.ones(n))
+    new = strat.densify_and_prune(1, "interface", g, adam, prune_large=False)
+    tags = new.logit_specular
+    m = adam.state["interface"]["logit_specular"][0]
+    ev = strat.events[-1]
+    # kept: not pruned (opacity) and not split; cloned: small & top; split: large & top (2 children, parent gone)
+    small_top = [12, 14, 16, 18]  # 10 and 15 are about to be pruned: not densified
+    large_top = [11, 13, 17, 19]
+    assert (ev.cloned, ev.split, ev.pruned) == (4, 4, 4)
+    assert len(new) == n - 4 - len(large_top) + len(small_top) + 2 * len(large_top)
+    assert sorted(tags[:12].astype(int)) == sorted(set(range(n)) - {0, 5, 10, 15} - set(large_top))
+    assert sorted(tags[12:16].astype(int)) == small_top
+    for row, tag in enumerate(tags):
+        if m[row] != 0:  # copied rows carry their moments
+            assert m[row] == tag + 100
+    assert np.count_nonzero(m == 0) == 2 * len(large_top)  # split children start with fresh moments
+    assert len(strat.grad_sum["interface"]) == len(new)
+
+
+def test_patch_losses():
+    p, P = 4, 3
+    x = mi.Color3f(*[mi.Float(np.random.default_rng(k).uniform(0, 1, P * p * p)) for k in range(3)])
+    assert float(L.dssim(x, x, p)[0]) == pytest.approx(0.0, abs=1e-6)
+    assert float(L.dssim(x, x * 0.5, p)[0]) > 0.01
+    # a plane z = 2 seen from the origin: depth-normal consistency is 0 for the plane's normal, > 0 otherwise
+    ys, xs = np.mgrid[0:p, 0:p]
+    d = np.stack([(xs.ravel() - 1.5) * 0.1, (ys.ravel() - 1.5) * 0.1, np.ones(p * p)], -1)
+    d = np.tile(d / np.linalg.norm(d, axis=1, keepdims=True), (P, 1))
+    dist = 2.0 / d[:, 2]
+    D = mi.Vector3f(*[mi.Float(d[:, k]) for k in range(3)])
+    nb = patch_neighbours(P, p)
+    good = L.depth_normal_consistency(mi.Point3f(0, 0, 0), D, mi.Float(dist), mi.Vector3f(0, 0, -1),
+                                      mi.Bool(True), nb)
+    bad = L.depth_normal_consistency(mi.Point3f(0, 0, 0), D, mi.Float(dist), mi.Vector3f(0, -1, 0),
+                                     mi.Bool(True), nb)
+    assert float(good[0]) < 1e-5 and float(bad[0]) > 0.9
+
+
+def test_bad_inputs_name_the_problem(room, tmp_path):
+    xml = tmp_path / "no_ds.xml"
+    xml.write_text(scene_xml(room).replace('<string name="dataset"', '<string name="not_dataset"'))
+    with pytest.raises(SceneError, match="dataset"):
+        read_scene(xml)
+    with pytest.raises(SceneError, match="no such scene"):
+        read_scene(tmp_path / "missing.xml")
+    with pytest.raises(ConfigError, match="patch"):
+        TrainConfig.for_preset("tiny", patch=1)
+    with pytest.raises(ConfigError, match="unknown field"):
+        TrainConfig.for_preset("tiny", learning_rate=3)
+    # missing image / image size that does not match its camera
+    import shutil
+
+    broken = tmp_path / "broken"
+    shutil.copytree(room, broken)
+    (broken / "images" / "view_002.png").unlink()
+    with pytest.raises(DatasetError, match="view_002"):
+        load_dataset(broken)
+    from PIL import Image
+
+    shutil.copy(room / "images" / "view_001.png", broken / "images" / "view_002.png")
+    Image.new("RGB", (10, 10)).save(broken / "images" / "view_003.png")
+    with pytest.raises(DatasetError, match="do not match"):
+        load_dataset(broken)
+    # empty point cloud and no random top-up: a clear error and no run folder
+    run = tmp_path / "run_empty"
+    with pytest.raises(DatasetError, match="point cloud is empty"):
+        Trainer(run, tiny_cfg(init_min_points=0), scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    assert not run.exists()
+
+
+def _interrupt_at(trainer, monkeypatch, it):
+    real = trainer.step
+
+    def step():
+        if trainer.it == it:
+            raise KeyboardInterrupt
+        return real()
+
+    monkeypatch.setattr(trainer, "step", step)
+
+
+def test_resume_continues_exactly(room, tmp_path, monkeypatch):
+    """Interrupted at 20 + resumed == 40 straight, bit for bit. Run on one Dr.Jit thread: with several threads the
+    float atomics that sum gradients are not bit-reproducible (Adam turns a near-zero gradient's sign flip into an
+    lr-sized step), which is run-to-run noise, not a resume error."""
+    threads = dr.thread_count()
+    dr.set_thread_count(1)
+    try:
+        _resume_check(room, tmp_path, monkeypatch)
+    finally:
+        dr.set_thread_count(threads)
+
+
+def _resume_check(room, tmp_path, monkeypatch):
+    kw = dict(iterations=40, patches=4, checkpoint_every=1000, densify_every=0.25, reset_every=0.5)
+    spec = read_scene(room.parent / "scene.xml")
+    a = Trainer(tmp_path / "a", tiny_cfg(**kw), scene=spec, log=lambda *a: None)
+    a.train(progress=False)
+    b = Trainer(tmp_path / "b", tiny_cfg(**kw), scene=spec, log=lambda *a: None)
+    _interrupt_at(b, monkeypatch, 20)
+    with pytest.raises(KeyboardInterrupt):
+        b.train(progress=False)
+    b2 = Trainer(tmp_path / "b", tiny_cfg(**kw), resume=True, log=lambda *a: None)
+    assert b2.it == 20
+    b2.train(progress=False)
+    assert [h["iteration"] for h in b2.history] == list(range(40))
+    for role in a.sets:
+        for f in RAW_FIELDS:
+            x, y = getattr(a.sets[role], f), getattr(b2.sets[role], f)
+            assert x.shape == y.shape, (role, f)
+            assert np.array_equal(x, y), (role, f, np.abs(x - y).max())
+    assert a.rng.bit_generator.state == b2.rng.bit_generator.state
+
+
+def test_interrupt_saves_a_checkpoint(room, tmp_path, monkeypatch):
+    tr = Trainer(tmp_path / "r", tiny_cfg(iterations=30, patches=4), scene=read_scene(room.parent / "scene.xml"),
+                 log=lambda *a: None)
+    _interrupt_at(tr, monkeypatch, 7)
+    with pytest.raises(KeyboardInterrupt):
+        tr.train(progress=False)
+    z = np.load(tmp_path / "r" / "checkpoint.npz")
+    assert int(z["iteration"]) == 7
+    assert not list((tmp_path / "r").glob("*.partial"))
