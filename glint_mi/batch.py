@@ -46,12 +46,13 @@ class Batch:
     depth_prior: np.ndarray | None
     normal_prior: np.ndarray | None   # camera space, OpenCV axes
     albedo_prior: np.ndarray | None
+    glass: np.ndarray | None            # ground-truth glass mask (TSGS baseline only)
     patches: int
     patch: int
 
 
 class RayBank:
-    def __init__(self, views: list[View], root, use_priors: bool = True):
+    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: bool = False):
         self.views = views
         self.sizes = [(v.height, v.width) for v in views]
         self.offsets = np.cumsum([0] + [h * w for h, w in self.sizes])
@@ -65,6 +66,14 @@ class RayBank:
             if all(m is not None for m in maps):
                 self.priors[kind] = np.concatenate([m.reshape(h * w, -1) for m, (h, w) in zip(maps, self.sizes)])
         self.priors.setdefault("depth", None)
+        self.glass = None
+        if glass_masks:
+            gts = [v.load_gt() for v in views]
+            if any(g is None for g in gts):
+                from .data import DatasetError
+
+                raise DatasetError(f"{root}: trans_masks = gt needs gt/<view>.exr for every training view.")
+            self.glass = np.concatenate([g["glass"].reshape(-1) for g in gts]).astype(np.float32)
 
     @property
     def has(self) -> set[str]:
@@ -85,7 +94,8 @@ class RayBank:
         flat = self.offsets[view] + ys * np.repeat(ws, p * p) + xs
         get = lambda k: None if self.priors.get(k) is None else self.priors[k][flat]
         return Batch(view, flat, self.origins[view], self.dirs[flat], self.axes[view], self.rgb[flat],
-                     None if get("depth") is None else get("depth")[:, 0], get("normal"), get("albedo"), patches, p)
+                     None if get("depth") is None else get("depth")[:, 0], get("normal"), get("albedo"),
+                     None if self.glass is None else self.glass[flat], patches, p)
 
 
 def patch_neighbours(patches: int, p: int):

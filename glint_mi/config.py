@@ -34,6 +34,9 @@ class TrainConfig:
     components: str = "auto"             # auto | all | comma list of interface,transmission,reflection
     max_order: int = 1
     max_hits: int = 64                   # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget")
+    fresnel: bool = True                 # false: EnvGS's (1 - beta) c_I + beta c_R blend (baseline)
+    priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
+    trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | gt (ground-truth glass masks; TSGS baseline)
     # initialisation (method section 1)
     init_opacity: float = 0.1
     grid_n: int = 32                     # reflection grid N^3 cells ...
@@ -138,6 +141,8 @@ class TrainConfig:
         need(self.kernel in cv.KERNELS, "kernel", f"use one of {cv.KERNELS}")
         need(0 <= self.sh_degree <= 3, "sh_degree", "must be 0..3")
         need(self.max_order in (1, 2), "max_order", "must be 1 or 2")
+        need(self.priors in ("all", "none"), "priors", "use all or none")
+        need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
         comps = self.components.replace(" ", "")
         need(comps in ("auto", "all") or set(comps.split(",")) <= set(cv.ROLES), "components",
              f"use auto, all or a comma list of {cv.ROLES}")

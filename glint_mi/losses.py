@@ -56,7 +56,7 @@ def bce(t, target: float, weight):
     return dr.sum(w * loss) / dr.maximum(dr.sum(w), 1e-12)
 
 
-def _erode(mask: np.ndarray) -> np.ndarray:
+def erode(mask: np.ndarray) -> np.ndarray:
     """3x3 erosion over the last two axes (an image [H,W] or a stack of patches [B,p,p])."""
     from scipy.ndimage import binary_erosion
 
@@ -87,7 +87,7 @@ def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=Non
     if cos_view is not None:
         ang = np.degrees(np.arccos(np.clip(cos_view, -1, 1)))
         w = np.clip((80.0 - ang) / 10.0, 0.0, 1.0)
-    return _erode(m_t) * w, _erode(m_o & ~m_t) * w
+    return erode(m_t) * w, erode(m_o & ~m_t) * w
 
 
 # ------------------------------------------------------------ patch terms

@@ -137,6 +137,7 @@ class Strategy:
         self.count: dict[str, np.ndarray] = {}
         self.events: list[Event] = []
         self.resets = 0
+        self.last_reset = -10 ** 9
 
     # ---------------------------------------------------------------- stats
     def accumulate(self, role: str, n: int, g_means: np.ndarray, g_opacity: np.ndarray) -> None:
@@ -168,7 +169,11 @@ class Strategy:
         room = max(0, cfg.max_gaussians - n)
         seen = self.count[role] > 0
         top = np.quantile(g[seen], 1.0 - cfg.densify_top) if seen.any() else np.inf
-        alive = a["opacity"] >= cfg.prune_opacity  # a Gaussian about to be pruned is not densified
+        # Right after an opacity reset (to 0.01) every Gaussian is below the paper's prune threshold: for half a reset
+        # interval only 3DGS's 0.005 applies, so that opacities can recover before they are judged.
+        grace = it - self.last_reset < max(1, cfg.every(cfg.reset_every) // 2) if cfg.reset_every > 0 else False
+        thresh = min(cfg.prune_opacity, 0.005) if grace else cfg.prune_opacity
+        alive = a["opacity"] >= thresh  # a Gaussian about to be pruned is not densified
         cand = np.flatnonzero(seen & alive & (g >= max(cfg.densify_grad, top)))
         if len(cand) > room:  # the budget goes to the largest gradients
             cand = cand[np.argsort(-g[cand])[:room]]
@@ -187,7 +192,7 @@ class Strategy:
             child.log_scales = gset.log_scales[split] - np.log(1.6)
             children.append(child)
         # prune: low opacity, too large (after the first reset), and split parents
-        drop = a["opacity"] < cfg.prune_opacity
+        drop = ~alive
         if prune_large:
             drop |= smax > cfg.prune_scale * self.extent
         drop[split] = True
@@ -209,16 +214,18 @@ class Strategy:
             np.minimum(v, cap, out=v)
             adam.reset_field(role, f)
         self.resets += 1
+        self.last_reset = it
         self.events.append(Event(it, role, size=len(gset), what="reset"))
 
     def state_dict(self) -> dict:
-        out = {"resets": np.array(self.resets)}
+        out = {"resets": np.array(self.resets), "last_reset": np.array(self.last_reset)}
         for role in self.grad_sum:
             out[f"{role}/grad_sum"], out[f"{role}/count"] = self.grad_sum[role], self.count[role]
         return out
 
     def load_state_dict(self, arrays: dict) -> None:
         self.resets = int(arrays.get("resets", 0))
+        self.last_reset = int(arrays.get("last_reset", -10 ** 9))
         for key, v in arrays.items():
             if key.endswith("/grad_sum"):
                 role = key.split("/")[0]

@@ -82,7 +82,8 @@ class Trainer:
             self._load_checkpoint()
         else:
             self._fresh()
-        self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=True)
+        self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
+                            glass_masks=cfg.trans_masks == "gt")
         self.report["priors"] = sorted(self.bank.has)
         from .dataset.priors import priors_are_derived
 
@@ -121,8 +122,10 @@ class Trainer:
         """(Re)create the Mitsuba scene for the current sets (once per run; sizes change through traverse)."""
         import mitsuba as mi
 
-        props = {"components": "auto" if self.cfg.components == "auto" else "all", "max_order": self.cfg.max_order,
-                 "max_hits": self.cfg.max_hits,
+        # the integrator traces every enabled set for every ray ("all"): its per-ray "auto" skipping folds a skipped
+        # weight into k_d, which zeroes the gradient that would let beta (or tau) grow from its initial value
+        props = {"components": "all", "max_order": self.cfg.max_order,
+                 "max_hits": self.cfg.max_hits, "fresnel": self.cfg.fresnel,
                  "aovs": "depth,normal,transparency,interface,alpha,weights"}
         self.scene = mi.load_dict(sets_scene_dict(self.sets, self.cfg.kernel, **props))
         self.integ = self.scene.integrator()
@@ -155,13 +158,14 @@ class Trainer:
         if c.refine_from < 1.0 and on(c.refine_from) and len(traced) > 1:
             trained.discard("interface")  # supplement: the interface is frozen in the refine stage
         has_t = "transmission" in traced
+        gt_masks = c.trans_masks == "gt"
         return {"traced": traced, "trained": trained, "name": "warm-up" if traced == {"interface"} and not on(c.warmup)
                 else ("refine" if "interface" not in trained else "joint"),
                 "depth": c.w_depth > 0 and "depth" in self.bank.has,
                 "normal": c.w_normal > 0 and "normal" in self.bank.has and on(c.normal_from),
                 "consistency": c.w_consistency > 0,
                 "direct": has_t and c.w_direct > 0,
-                "trans": has_t and c.w_trans > 0 and on(c.trans_from),
+                "trans": (has_t or gt_masks) and c.w_trans > 0 and on(c.trans_from),
                 "treg": has_t and c.w_treg > 0 and on(c.treg_from),
                 "plausibility": has_t and c.w_plausibility > 0 and on(c.plausibility_from),
                 "sh_degree": min(c.sh_degree, it // c.every(c.sh_every))}
@@ -233,10 +237,10 @@ class Trainer:
                         parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
                             L.depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
                                                        dr.detach(DA) > 0.5, nb)
-                if st["trans"] or st["plausibility"]:
+                if (st["trans"] and c.trans_masks == "depth_gap") or st["plausibility"]:
                     w_t, w_o = self._trans_masks(b, out, nb)
                     stats["mask_t"] = float(w_t.mean())
-                    if st["trans"]:
+                    if st["trans"] and c.trans_masks == "depth_gap":
                         parts["trans"] = c.w_trans * (L.bce(t, 0.98, floats(w_t)) + L.bce(t, 0.02, floats(w_o)))
                     if st["plausibility"]:
                         parts["plausibility"] = c.w_plausibility * L.plausibility(
@@ -247,6 +251,11 @@ class Trainer:
                             + np.abs(img[:, 1:, :-1] - img[:, :-1, :-1]).mean(-1))  # at the nb pixels, in order
                     grad_i = edge.reshape(-1) * 10.0
                     parts["treg"] = c.w_treg * L.transparency_regulariser(t, floats(grad_i), nb)
+            if st["trans"] and c.trans_masks == "gt":  # TSGS baseline: supervised by ground-truth glass masks
+                g = b.glass.reshape(b.patches, p, p) > 0.5
+                w_t, w_o = (L.erode(m).ravel().astype(np.float32) for m in (g, ~g))
+                stats["mask_t"] = float(w_t.mean())
+                parts["trans"] = c.w_trans * (L.bce(t, 0.98, floats(w_t)) + L.bce(t, 0.02, floats(w_o)))
             total = sum(parts.values())
             dr.backward(total)
             adjoints = {}
@@ -360,17 +369,37 @@ class Trainer:
                 self.dropped[role] = why
 
     # ------------------------------------------------------------- loop
-    def train(self, progress: bool = True) -> dict:
+    def train(self, progress: bool = True, until: int | None = None) -> dict:
+        """Run to ``until`` (default: the end of the schedule; a notebook can advance in chunks). At the end the
+        model is saved. Ctrl-C stops after the current iteration (a second Ctrl-C at once), saves a checkpoint and
+        raises KeyboardInterrupt; ``--resume`` then continues exactly."""
+        import sys
+
         from tqdm.auto import tqdm
 
         c = self.cfg
+        until = c.iterations if until is None else min(until, c.iterations)
         start = time.perf_counter() - self.elapsed
         rays = c.patches * c.patch ** 2
-        bar = tqdm(total=c.iterations, initial=self.it, disable=not progress, unit="it", dynamic_ncols=True)
+        bar = tqdm(total=c.iterations, initial=self.it, disable=not progress, unit="it", dynamic_ncols=True,
+                   mininterval=0.5 if sys.stderr.isatty() else 30.0)
+        self.stop_requested = False
+
+        def on_sigint(signum, frame):
+            if self.stop_requested:
+                raise KeyboardInterrupt
+            self.stop_requested = True
+            self.log("\nCtrl-C: stopping after this iteration (press again to stop at once)")
+
         old = signal.getsignal(signal.SIGINT)
-        interrupted = False
         try:
-            while self.it < c.iterations:
+            signal.signal(signal.SIGINT, on_sigint)
+        except ValueError:  # not the main thread (e.g. some notebook runners): default handling
+            old = None
+        mid = hard = False
+        try:
+            while self.it < until and not self.stop_requested:
+                mid = True
                 t0 = time.perf_counter()
                 st = self.stage()
                 rec = self.step()
@@ -380,25 +409,33 @@ class Trainer:
                            gaussians=sum(len(s) for r, s in self.sets.items() if r not in self.dropped))
                 self.history.append(rec)
                 self.it += 1
+                mid = False
                 self.elapsed = time.perf_counter() - start
                 bar.update(1)
                 if self.it % c.log_every == 0 or self.it == c.iterations:
                     bar.set_postfix(loss=f"{rec['total']:.4f}", rays_s=f"{rec['rays_per_s']:.0f}",
-                                    stage=st["name"], n=rec["gaussians"])
+                                    stage=st["name"], n=rec["gaussians"], refresh=False)
                 if self.it % c.checkpoint_every == 0 and self.it < c.iterations:
                     self.save_checkpoint()
         except KeyboardInterrupt:
-            interrupted = True
+            self.stop_requested, hard = True, mid
         finally:
             bar.close()
-            signal.signal(signal.SIGINT, old)
+            if old is not None:
+                signal.signal(signal.SIGINT, old)
         self.elapsed = time.perf_counter() - start
+        if hard:  # stopped inside an iteration: its state is partial, keep the last consistent checkpoint
+            done = int(np.load(self.run_dir / "checkpoint.npz")["iteration"]) if (
+                self.run_dir / "checkpoint.npz").exists() else 0
+            self.log(f"stopped inside iteration {self.it}; the last checkpoint (iteration {done}) is kept")
+            raise KeyboardInterrupt
         self.save_checkpoint()
-        if interrupted:
+        if self.stop_requested:
             self.log(f"interrupted at iteration {self.it}: checkpoint saved; continue with "
                      f"`python -m glint_mi.optimize --resume {self.run_dir}`")
             raise KeyboardInterrupt
-        self.save_model()
+        if self.it >= c.iterations:
+            self.save_model()
         return {"iterations": self.it, "train_s": self.elapsed}
 
     def integ_for_eval(self):
@@ -493,7 +530,8 @@ class Trainer:
                f'mitsuba or python -m glint_mi.evaluate -->\n'
                f'    <integrator type="glint" id="integrator">\n'
                f'        <string name="dataset" value="{self.ds.root.resolve()}"/>\n'
-               f'        <string name="components" value="auto"/>\n'
+               f'        <string name="components" value="all"/>\n'
+               f'        <boolean name="fresnel" value="{str(self.cfg.fresnel).lower()}"/>\n'
                f'        <integer name="max_order" value="{self.cfg.max_order}"/>\n'
                f'        <integer name="max_hits" value="{self.cfg.max_hits}"/>\n{shapes}\n    </integrator>\n'
                f'{sensor_xml(cam, 1)}</scene>\n')

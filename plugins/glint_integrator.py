@@ -15,6 +15,10 @@ and the same transport as a first-order reference on mesh scenes with real glass
      transmission where k_t > transmit_min; the skipped weight goes to the diffuse term, so weights still sum to
      1); ``all``: trace every present set for every ray (exact first-order model); or a comma list of the sets to
      use, e.g. ``interface,transmission``.
+ * - fresnel
+   - |bool|
+   - ``true`` (default): GLINT's Schlick weights. ``false``: EnvGS's blend k_s = beta, k_d = 1 - beta, k_t = 0 (the
+     ``envgs`` baseline).
  * - reflect_min, transmit_min
    - |float|
    - Per-ray thresholds of ``auto``. (Default: 0.05, just above F0 = 0.04, and 1e-3)
@@ -223,6 +227,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         self.transmittance_min = float(props.get("transmittance_min", T_MIN))
         if not (0.0 <= self.alpha_min < self.alpha_max < 1.0 and 0.0 <= self.transmittance_min < 1.0):
             raise ValueError("glint: need 0 <= alpha_min < alpha_max < 1 and 0 <= transmittance_min < 1.")
+        # fresnel = false: EnvGS's blend C = (1 - beta) c_I + beta c_R (no Fresnel, no transmission), for baselines
+        self.fresnel = bool(props.get("fresnel", True))
         self.reflect_min = float(props.get("reflect_min", 0.05))
         self.transmit_min = float(props.get("transmit_min", 1e-3))
         comps = str(props.get("components", "auto")).replace(" ", "")
@@ -488,9 +494,9 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         n_hat = I.normal
         cos = dr.select(dr.squared_norm(n_hat) > 0, dr.maximum(0.0, dr.dot(-d, n_hat)), 1.0)
         F = schlick(cos, self.f0)
-        ks = dr.clip(I.B + (1.0 - I.B) * F, self.f0, 1.0)
-        kd = (1.0 - ks) * (1.0 - I.Tau)
-        kt = (1.0 - ks) * I.Tau
+        ks = dr.clip(I.B + (1.0 - I.B) * F, self.f0, 1.0) if self.fresnel else dr.clip(I.B, 0.0, 1.0)
+        kd = (1.0 - ks) * (1.0 - I.Tau) if self.fresnel else 1.0 - ks
+        kt = (1.0 - ks) * I.Tau if self.fresnel else mi.Float(0.0)
         ks, kt, kd = dr.select(has, ks, 0.0), dr.select(has, kt, 0.0), dr.select(has, kd, 1.0)
         refl, trans = self.active_set("reflection"), self.active_set("transmission")
         do_r = mi.Bool(dr.detach(active & has & (ks > (self.reflect_min if self.auto else 0.0)))) & (refl is not None)

@@ -160,11 +160,15 @@ def test_bad_inputs_name_the_problem(room, tmp_path):
 
 
 def _interrupt_at(trainer, monkeypatch, it):
+    """Press Ctrl-C (a real SIGINT) during iteration ``it``: the run stops after it, at ``it + 1``."""
+    import os
+    import signal
+
     real = trainer.step
 
     def step():
         if trainer.it == it:
-            raise KeyboardInterrupt
+            os.kill(os.getpid(), signal.SIGINT)
         return real()
 
     monkeypatch.setattr(trainer, "step", step)
@@ -188,7 +192,7 @@ def _resume_check(room, tmp_path, monkeypatch):
     a = Trainer(tmp_path / "a", tiny_cfg(**kw), scene=spec, log=lambda *a: None)
     a.train(progress=False)
     b = Trainer(tmp_path / "b", tiny_cfg(**kw), scene=spec, log=lambda *a: None)
-    _interrupt_at(b, monkeypatch, 20)
+    _interrupt_at(b, monkeypatch, 19)
     with pytest.raises(KeyboardInterrupt):
         b.train(progress=False)
     b2 = Trainer(tmp_path / "b", tiny_cfg(**kw), resume=True, log=lambda *a: None)
@@ -210,7 +214,8 @@ def test_interrupt_saves_a_checkpoint(room, tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         tr.train(progress=False)
     z = np.load(tmp_path / "r" / "checkpoint.npz")
-    assert int(z["iteration"]) == 7
+    assert int(z["iteration"]) == 8  # the iteration in flight finished, then the run stopped
+    assert not (tmp_path / "r" / "model").exists()
     assert not list((tmp_path / "r").glob("*.partial"))
 
 

@@ -1,0 +1,169 @@
+"""``python -m glint_mi.benchmark``: every method on every scene with the same budget; the comparison table.
+
+    python -m glint_mi.benchmark --data out/bench_data --preset bench --out docs/results/bench
+    python -m glint_mi.benchmark --data DIR --methods glint,envgs --preset tiny --out OUT   # a subset
+
+``--data`` holds generated scenes (``python -m glint_mi.dataset make``; ``--make-data N`` generates N there first).
+One run per method x scene under ``OUT/runs/<scene>/<method>``; a run with a ``metrics.json`` is skipped and an
+interrupted one resumes from its checkpoint, so the benchmark can be stopped and restarted. Writes ``OUT/results.csv``,
+``OUT/table.md`` (the paper's columns per scene and the mean, plus SSIM, glass-only MAE/AbsRel, transparency IoU)
+and ``OUT/figures/<scene>.png`` (per-method renders of the first test view side by side).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from . import metrics as M
+from .methods import METHODS, TABLE_METHODS, config_for
+
+COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae_glass", "absrel_glass", "t_iou")
+
+
+def scenes_in(data: Path) -> list[Path]:
+    found = sorted(p.parent for p in Path(data).glob("*/split.json"))
+    if not found:
+        raise FileNotFoundError(f"{data}: no generated scenes (folders with split.json); make them with "
+                                f"`python -m glint_mi.dataset make {data} --scenes 5 --preset bench` or pass "
+                                f"--make-data 5.")
+    return found
+
+
+def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, log=print, **extra) -> dict:
+    """Train (or resume, or skip when finished) one method on one scene and evaluate it; returns the metrics."""
+    from .evaluate import evaluate
+    from .scene import read_scene, scene_xml
+    from .train import Trainer
+
+    if (run / "metrics.json").exists():
+        return json.loads((run / "metrics.json").read_text())
+    cfg = config_for(method, preset, variant, **extra)
+    if (run / "checkpoint.npz").exists():
+        trainer = Trainer(run, cfg, resume=True, log=log)
+    else:
+        run.mkdir(parents=True, exist_ok=True)
+        xml = run / "scene.xml"
+        xml.write_text(scene_xml(scene_dir))
+        trainer = Trainer(run, cfg, scene=read_scene(xml), log=log)
+    (run / "method.json").write_text(json.dumps({"method": method, "overrides": METHODS[method].overrides,
+                                                 "differs": METHODS[method].differs}, indent=1))
+    res = trainer.train(progress=False)
+    out = evaluate(trainer.integ_for_eval(), trainer.ds.test_views, run, res["train_s"])
+    return {k: v for k, v in out.items() if k not in ("per_view", "renders")}
+
+
+def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    cols = [("rgb", "RGB"), ("depth", "depth"), ("normal", "normal"), ("t", "transparency"), ("cI", "c_I"),
+            ("cR", "c_R"), ("cT", "c_T")]
+    names = list(runs)
+    fig, ax = plt.subplots(len(names), len(cols), figsize=(2.2 * len(cols), 1.45 * len(names) + 0.4), squeeze=False)
+    for i, name in enumerate(names):
+        per = sorted((runs[name] / "renders").glob("*_rgb.png"))
+        view = per[0].name[:-len("_rgb.png")] if per else None
+        for j, (key, title) in enumerate(cols):
+            a = ax[i, j]
+            a.axis("off")
+            f = runs[name] / "renders" / f"{view}_{key}.png"
+            if view and f.exists():
+                a.imshow(np.asarray(Image.open(f)))
+            if i == 0:
+                a.set_title(title, fontsize=8)
+        ax[i, 0].text(-0.05, 0.5, name, transform=ax[i, 0].transAxes, ha="right", va="center", fontsize=8)
+    fig.suptitle(scene, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def write_results(rows: list[dict], out: Path, header: str = "") -> str:
+    """results.csv (one row per method x scene) and table.md (per scene, then the mean per method)."""
+    from .train import atomic_write_text
+
+    keys = ["method", "scene", *COLUMNS]
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: (f"{r[k]:.6g}" if isinstance(r.get(k), float) else r.get(k)) for k in keys})
+    atomic_write_text(out / "results.csv", buf.getvalue())
+    md = [header] if header else []
+    scenes = sorted({r["scene"] for r in rows})
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    for s in scenes:
+        md.append(f"### {s}\n")
+        md.append(M.table({r["method"]: r for r in rows if r["scene"] == s}, COLUMNS))
+    md.append(f"### mean over {len(scenes)} scene(s)\n")
+    means = {}
+    for m in methods:
+        sel = [r for r in rows if r["method"] == m]
+        means[m] = {k: float(np.nanmean([r.get(k, np.nan) if r.get(k) is not None else np.nan for r in sel]))
+                    for k in COLUMNS}
+    md.append(M.table(means, COLUMNS))
+    text = "\n".join(md)
+    atomic_write_text(out / "table.md", text)
+    return text
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m glint_mi.benchmark", description=__doc__.split("\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap.add_argument("--data", type=Path, required=True, help="folder of generated scenes")
+    ap.add_argument("--make-data", type=int, metavar="N", help="generate N scenes into --data first (if missing)")
+    ap.add_argument("--preset", default="bench", choices=["tiny", "quick", "bench"])
+    ap.add_argument("--variant", default="supplement", choices=["supplement", "release"])
+    ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")
+    ap.add_argument("--iterations", type=int, help="override the preset's iterations (same for every method)")
+    ap.add_argument("--out", type=Path, default=Path("out/benchmark"))
+    args = ap.parse_args(argv)
+
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        print(f"error: unknown method(s) {bad}; choose from {sorted(METHODS)}", file=sys.stderr)
+        return 2
+    if args.make_data and not list(args.data.glob("*/split.json")):
+        from .dataset.__main__ import main as dataset_main
+
+        dataset_main(["make", str(args.data), "--scenes", str(args.make_data), "--preset", args.preset])
+    try:
+        scenes = scenes_in(args.data)
+    except FileNotFoundError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    extra = {"iterations": args.iterations} if args.iterations else {}
+    args.out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    from .evaluate import machine
+
+    for scene in scenes:
+        runs = {}
+        for m in methods:
+            run = args.out / "runs" / scene.name / m
+            print(f"[{scene.name}] {m} ...", flush=True)
+            res = run_one(m, scene, run, args.preset, args.variant, log=lambda *a: None, **extra)
+            rows.append({"method": m, "scene": scene.name, **res["metrics"]})
+            runs[m] = run
+        (args.out / "figures").mkdir(exist_ok=True)
+        figure(scene.name, runs, args.out / "figures" / f"{scene.name}.png")
+    derived = any((s / "priors" / "PRIORS.json").exists() for s in scenes)
+    header = (f"Benchmark: `python -m glint_mi.benchmark {' '.join(argv if argv is not None else sys.argv[1:])}`\n\n"
+              f"preset {args.preset}, variant {args.variant}; machine: {machine()}."
+              + (" Priors derived from ground truth (labelled)." if derived else "") + "\n")
+    print(write_results(rows, args.out, header))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
