@@ -83,7 +83,8 @@ class TrainConfig:
     densify_grad: float = 2e-4           # floor on mean |dL/d position| x extent over the interval
     densify_top: float = 0.05            # ... and only the top fraction of the set by that gradient, per step
     percent_dense: float = 0.01          # clone below this x extent, split above
-    prune_opacity: float = 0.05
+    prune_opacity: float = 0.005         # 3DGS's; the paper lists 0.08 / 0.05, which after a reset to 0.01 prunes
+                                         # most of a set unless thousands of steps separate reset and pruning
     prune_scale: float = 0.1             # prune Gaussians larger than this x extent (after the first reset)
     max_gaussians: int = 20_000          # per set
     # components: auto

@@ -169,8 +169,8 @@ class Strategy:
         room = max(0, cfg.max_gaussians - n)
         seen = self.count[role] > 0
         top = np.quantile(g[seen], 1.0 - cfg.densify_top) if seen.any() else np.inf
-        # Right after an opacity reset (to 0.01) every Gaussian is below the paper's prune threshold: for half a reset
-        # interval only 3DGS's 0.005 applies, so that opacities can recover before they are judged.
+        # Right after an opacity reset (to 0.01) every Gaussian is below a paper-style threshold (0.05): for half a
+        # reset interval at most 3DGS's 0.005 applies, so that opacities can recover before they are judged.
         grace = it - self.last_reset < max(1, cfg.every(cfg.reset_every) // 2) if cfg.reset_every > 0 else False
         thresh = min(cfg.prune_opacity, 0.005) if grace else cfg.prune_opacity
         alive = a["opacity"] >= thresh  # a Gaussian about to be pruned is not densified

@@ -1,0 +1,104 @@
+"""The speed / accuracy trade: train variants of one configuration side by side and measure time against quality.
+
+:func:`run_variants` trains each named set of overrides on one scene (same seed, same data) and returns rows with
+train seconds, FPS and the metrics; :func:`pareto` marks the rows no other row beats on both time and quality;
+:func:`mesh_reference_trade` measures the first-order glass model (mesh mode) and Mitsuba's ``path`` at several spp
+against a high-spp ``path`` reference. ``benchmarks/bench_tradeoff.py`` runs the full grid and notebook 5 plots it.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+# name -> TrainConfig overrides on top of the preset; the groups are the user's questions
+GRID = {
+    "budget": {"iters x0.5": {"iterations_scale": 0.5}, "iters x1": {}, "iters x2": {"iterations_scale": 2.0},
+               "rays x0.5": {"patches_scale": 0.5}, "rays x2": {"patches_scale": 2.0}},
+    "gaussians": {"max 1k": {"max_gaussians": 1000}, "max 4k": {"max_gaussians": 4000},
+                  "max 16k": {"max_gaussians": 16000}},
+    "sh": {"SH 0": {"sh_degree": 0}, "SH 1": {"sh_degree": 1}, "SH 2": {"sh_degree": 2}},
+    "components": {"interface": {"components": "interface"},
+                   "+ reflection": {"components": "interface,reflection"},
+                   "+ transmission": {"components": "interface,transmission"},
+                   "all three": {"components": "all"}, "auto": {"components": "auto"}},
+    "order": {"first order": {"max_order": 1, "components": "all"},
+              "max_order 2": {"max_order": 2, "components": "all"}},
+}
+
+
+def _overrides(cfg_base, ov: dict) -> dict:
+    ov = dict(ov)
+    out = {}
+    if "iterations_scale" in ov:
+        out["iterations"] = max(1, int(round(cfg_base.iterations * ov.pop("iterations_scale"))))
+    if "patches_scale" in ov:
+        out["patches"] = max(1, int(round(cfg_base.patches * ov.pop("patches_scale"))))
+    out.update(ov)
+    return out
+
+
+def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: str = "tiny", log=print,
+                 **base) -> list[dict]:
+    """Train every variant (resumable: a finished one is read back) and return one row per variant."""
+    from .config import TrainConfig
+    from .evaluate import evaluate
+    from .scene import read_scene
+    from .train import Trainer
+
+    rows = []
+    base_cfg = TrainConfig.for_preset(preset, **base)
+    for name, ov in variants.items():
+        run = Path(out) / name.replace(" ", "_").replace("+", "plus")
+        done = run / "metrics.json"
+        if done.exists():
+            res = json.loads(done.read_text())
+        else:
+            cfg = TrainConfig.for_preset(preset, **{**base, **_overrides(base_cfg, ov)})
+            if (run / "checkpoint.npz").exists():
+                tr = Trainer(run, cfg, resume=True, log=lambda *a: None)
+            else:
+                tr = Trainer(run, cfg, scene=read_scene(scene_xml), log=lambda *a: None)
+            r = tr.train(progress=False)
+            res = evaluate(tr.integ_for_eval(), tr.ds.test_views, run, r["train_s"])
+            res = {k: v for k, v in res.items() if k not in ("per_view", "renders")}
+            log(f"{name}: {r['train_s']:.0f} s, PSNR {res['metrics']['psnr']:.2f}")
+        rows.append({"variant": name, **res["metrics"]})
+    return rows
+
+
+def pareto(rows: list[dict], cost: str = "train_s", quality: str = "psnr", higher_is_better: bool = True):
+    """Flags rows on the Pareto front (no other row is at least as cheap and strictly better, or cheaper and
+    at least as good)."""
+    sign = 1.0 if higher_is_better else -1.0
+    flags = []
+    for r in rows:
+        dominated = any(o is not r and o[cost] <= r[cost] and sign * o[quality] >= sign * r[quality]
+                        and (o[cost] < r[cost] or sign * o[quality] > sign * r[quality]) for o in rows)
+        flags.append(not dominated)
+    return flags
+
+
+def mesh_reference_trade(spps=(4, 16, 64), ref_spp: int = 1024, width: int = 48, height: int = 36) -> list[dict]:
+    """Error vs a ``ref_spp`` path-traced reference and warm time, for ``path`` and the first-order mesh mode."""
+    import mitsuba as mi
+
+    from .meshes import glass_room_dict
+    from .render import render_buffers
+
+    ref = np.array(mi.render(mi.load_dict(glass_room_dict({"type": "path", "max_depth": 64}, True, width, height,
+                                                          ref_spp)), seed=99))
+    rows = []
+    for spp in spps:
+        for name, integ in (("path", {"type": "path", "max_depth": 64}), ("glint mesh mode", {"type": "glint",
+                                                                                              "max_depth": 64})):
+            scene = mi.load_dict(glass_room_dict(integ, True, width, height, spp))
+            render_buffers(scene, spp=1)  # warm-up: compile
+            t0 = time.perf_counter()
+            img = render_buffers(scene, seed=3)["rgb"]
+            dt = time.perf_counter() - t0
+            err = float(np.abs(img - ref).mean() / ref.mean())
+            rows.append({"renderer": name, "spp": spp, "seconds": dt, "rel_error": err})
+    return rows
