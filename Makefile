@@ -1,10 +1,11 @@
 # Two commands for a fresh machine: `make demo` and `make test`. Both create .venv and install what they need.
 PYTHON ?= python3
+CYCLES_PYTHON ?= python3.11  # bpy 5.0.1 wheels are for CPython 3.11
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-slow bench clean
+.PHONY: demo test test-slow bench cycles-env clean
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -24,6 +25,13 @@ test-slow: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_integrator.py
+
+# Optional: Blender Cycles for the cross-check, in its own venv (bpy 5.0.1 pins numpy<2, ~1 GB).
+cycles-env: .venv-cycles/.installed
+.venv-cycles/.installed:
+	$(CYCLES_PYTHON) -m venv .venv-cycles
+	.venv-cycles/bin/python -m pip install -q bpy==5.0.1 OpenEXR==3.5.3
+	@touch $@
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis out

@@ -26,11 +26,31 @@ def main(argv=None) -> int:
     pr = sub.add_parser("priors", help="(re)derive imperfect priors for a generated scene")
     pr.add_argument("scene", type=Path)
     pr.add_argument("--seed", type=int, default=0)
+    pr.add_argument("--glass-surface", action="store_true",
+                    help="depth/normal priors see the glass surface (default: they see through it, like most "
+                         "monocular estimators)")
+    cy = sub.add_parser("cycles", help="render a generated scene with Blender Cycles (the optional cycles extra)")
+    cy.add_argument("scene", type=Path)
+    cy.add_argument("--views", help="comma list of view names (default: the test split)")
+    cy.add_argument("--spp", type=int, default=256)
     args = ap.parse_args(argv)
-    if args.cmd == "priors":
-        from .priors import derive_priors
+    if args.cmd == "cycles":
+        from .cycles_render import CyclesUnavailable, render_cycles
 
-        print(f"wrote {derive_priors(args.scene, args.seed)} (derived from ground truth)")
+        try:
+            out = render_cycles(args.scene, args.views.split(",") if args.views else None, args.spp)
+        except CyclesUnavailable as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 3
+        meta = json.loads((out / "meta.json").read_text())
+        print(f"wrote {out} ({len(meta['views'])} views at {args.spp} spp in {meta['seconds']:.1f} s); compare with "
+              f"`python -m glint_mi.crosscheck {args.scene}`")
+        return 0
+    if args.cmd == "priors":
+        from .priors import Corruption, derive_priors
+
+        c = Corruption(see_through_glass=not args.glass_surface)
+        print(f"wrote {derive_priors(args.scene, args.seed, c)} (derived from ground truth)")
         return 0
 
     from tqdm import tqdm
