@@ -146,17 +146,23 @@ def knn_scales(points: np.ndarray, k: int = 3) -> np.ndarray:
 
 
 def scene_bounds(ds: Dataset, points: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
-    """(lo, hi, extent): a box holding the cameras and the robust bulk of the points; extent = 1.1 x the radius
-    of the camera centres' bounding sphere (3DGS's scene scale), at least 1e-3 of the box."""
+    """(lo, hi, extent): a box holding the cameras and the robust bulk of the points, and the scene scale.
+
+    extent = 1.1 x the radius of the camera centres' bounding sphere (3DGS's scene scale), but at least the median
+    camera-to-point distance: cameras on an arc looking inwards (our trajectories) have a small radius while the
+    room is several metres deep."""
     centres = np.array([v.c2w[:3, 3] for v in ds.views])
     parts = [centres]
+    radius = float(np.linalg.norm(centres - centres.mean(0), axis=1).max()) * 1.1
+    extent = radius
     if points is not None and len(points) >= 8:
         parts.append(np.percentile(points, [1, 99], axis=0))
+        dist = np.linalg.norm(points[:, None] - centres[None], axis=-1).min(1)
+        extent = max(extent, float(np.median(dist)))
     allp = np.concatenate(parts)
     lo, hi = allp.min(0), allp.max(0)
-    radius = float(np.linalg.norm(centres - centres.mean(0), axis=1).max()) * 1.1
     diag = float(np.linalg.norm(hi - lo))
-    extent = max(radius, 0.1 * diag, 1e-6)
+    extent = max(extent, 0.1 * diag, 1e-6)
     pad = 0.1 * max(diag, extent)
     return lo - pad, hi + pad, extent
 
@@ -203,9 +209,10 @@ def grid_points(lo, hi, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
     return lo + u * (hi - lo)
 
 
-def ray_points(ds: Dataset, n: int, extent: float, rng: np.random.Generator):
-    """``n`` points on random training-pixel rays at random depths in [0.1, 2] x extent, with the pixel's colour
-    (a random initialisation restricted to what the cameras see; used when SfM gives too few points)."""
+def ray_points(ds: Dataset, n: int, extent: float, rng: np.random.Generator, depth_range=None):
+    """``n`` points on random training-pixel rays at random depths (``depth_range``: the SfM points' 5-95 %
+    distances from the cameras when there are any, else [0.2, 4] x extent), with the pixel's colour: a random
+    initialisation restricted to what the cameras see, used when SfM gives too few points."""
     from .batch import pixel_rays
 
     views = ds.train_views or ds.views
@@ -217,7 +224,8 @@ def ray_points(ds: Dataset, n: int, extent: float, rng: np.random.Generator):
             continue
         px = np.stack([rng.integers(0, v.width, len(sel)), rng.integers(0, v.height, len(sel))], -1)
         d = pixel_rays(v, px)
-        depth = rng.uniform(0.1, 2.0, len(sel)) * extent
+        lo_d, hi_d = depth_range if depth_range is not None else (0.2 * extent, 4.0 * extent)
+        depth = rng.uniform(lo_d, hi_d, len(sel))
         pts[sel] = v.c2w[:3, 3] + d * depth[:, None]
         cols[sel] = (v.load_image()[px[:, 1], px[:, 0]] * 255 + 0.5).astype(np.uint8)
     return pts, cols
@@ -234,7 +242,12 @@ def initial_sets(scene: OptimScene, ds: Dataset, cfg, rng: np.random.Generator, 
     if need_sfm and len(pts) < cfg.init_min_points:
         # too few SfM points to start from (small images): top up with random points along training rays
         extra = cfg.init_min_points - len(pts)
-        rp, rc = ray_points(ds, extra, extent, rng)
+        depth_range = None
+        if len(pts) >= 8:
+            centres = np.array([v.c2w[:3, 3] for v in ds.views])
+            dist = np.linalg.norm(pts[:, None] - centres[None], axis=-1).min(1)
+            depth_range = tuple(np.percentile(dist, [5, 95]))
+        rp, rc = ray_points(ds, extra, extent, rng, depth_range)
         pts, cols = np.concatenate([pts, rp]), np.concatenate([cols, rc])
         report["random_points"] = int(extra)
     sets = {}

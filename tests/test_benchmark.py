@@ -50,3 +50,22 @@ def test_benchmark_tiny(tmp_path):
     assert (out / "runs" / "scene_000" / "envgs" / "metrics.json").stat().st_mtime == mtime
     bad = subprocess.run(cmd[:-1] + [str(out), "--methods", "nerf"], capture_output=True, text=True, cwd=ROOT)
     assert bad.returncode == 2 and "unknown method" in bad.stderr
+
+
+def test_pareto_front():
+    from glint_mi.tradeoff import pareto
+    rows = [{"train_s": 1, "psnr": 20}, {"train_s": 2, "psnr": 25}, {"train_s": 3, "psnr": 24},
+            {"train_s": 2, "psnr": 25}, {"train_s": 0.5, "psnr": 10}]
+    assert pareto(rows) == [True, True, False, True, True]
+    mae = [{"train_s": 1, "normal_mae": 30}, {"train_s": 2, "normal_mae": 35}]
+    assert pareto(mae, quality="normal_mae", higher_is_better=False) == [True, False]
+
+
+@pytest.mark.slow
+def test_tradeoff_script_tiny(tmp_path):
+    r = subprocess.run([sys.executable, "benchmarks/bench_tradeoff.py", "--tiny", "--out", str(tmp_path)],
+                       capture_output=True, text=True, cwd=ROOT, timeout=1800)
+    assert r.returncode == 0, r.stderr[-3000:]
+    rows = list(csv.DictReader(open(tmp_path / "training.csv")))
+    assert {x["variant"] for x in rows} >= {"iters x0.5", "iters x1", "interface", "all three"}
+    assert (tmp_path / "tradeoff.png").exists() and "glint mesh mode" in (tmp_path / "tradeoff.md").read_text()

@@ -26,9 +26,9 @@ def main(argv=None) -> int:
     pr = sub.add_parser("priors", help="(re)derive imperfect priors for a generated scene")
     pr.add_argument("scene", type=Path)
     pr.add_argument("--seed", type=int, default=0)
-    pr.add_argument("--glass-surface", action="store_true",
-                    help="depth/normal priors see the glass surface (default: they see through it, like most "
-                         "monocular estimators)")
+    pr.add_argument("--see-through", type=float, default=1.0, metavar="P",
+                    help="probability per view that the depth/normal priors see through the glass instead of its "
+                         "surface (default 1: like most monocular estimators; 0: they see the glass)")
     cy = sub.add_parser("cycles", help="render a generated scene with Blender Cycles (the optional cycles extra)")
     cy.add_argument("scene", type=Path)
     cy.add_argument("--views", help="comma list of view names (default: the test split)")
@@ -49,7 +49,7 @@ def main(argv=None) -> int:
     if args.cmd == "priors":
         from .priors import Corruption, derive_priors
 
-        c = Corruption(see_through_glass=not args.glass_surface)
+        c = Corruption(see_through_glass=args.see_through)
         print(f"wrote {derive_priors(args.scene, args.seed, c)} (derived from ground truth)")
         return 0
 

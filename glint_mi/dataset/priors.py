@@ -30,7 +30,8 @@ class Corruption:
     normal_noise_deg: float = 5.0        # angular noise of normals (std, degrees)
     albedo_noise: float = 0.03
     glass_albedo: float = 0.02           # what the estimator reports on glass
-    see_through_glass: bool = True
+    see_through_glass: float = 1.0       # probability, per view, that depth/normal see through the glass (real
+                                         # estimators flicker between the glass and what is behind it)
 
 
 class PriorError(ValueError):
@@ -137,8 +138,9 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None 
         sensor = mi.load_dict(v.sensor_dict())
         z_behind, n_behind, alb = _behind_glass(scene, sensor)
         glass = gt["glass"] > 0.5
-        depth = np.where(glass & c.see_through_glass, z_behind, gt["depth"])
-        normal = np.where((glass & c.see_through_glass)[..., None], n_behind, gt["normal"])
+        through = bool(rng.random() < float(c.see_through_glass))
+        depth = np.where(glass & through, z_behind, gt["depth"])
+        normal = np.where((glass & through)[..., None], n_behind, gt["normal"])
         albedo = np.where(glass[..., None], c.glass_albedo, alb)
         a, b = rng.uniform(*c.depth_scale), rng.uniform(*c.depth_shift) * np.median(depth[depth > 0])
         valid = depth > 0
@@ -151,7 +153,7 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None 
         np.save(out / "depth" / f"{v.name}.npy", dp.astype(np.float32))
         np.save(out / "normal" / f"{v.name}.npy", n_cam.astype(np.float32))
         np.save(out / "albedo" / f"{v.name}.npy", albedo.astype(np.float32))
-        record["views"][v.name] = {"depth_scale": float(a), "depth_shift": float(b)}
+        record["views"][v.name] = {"depth_scale": float(a), "depth_shift": float(b), "sees_through_glass": through}
     (out / "PRIORS.json").write_text(json.dumps(record, indent=1))
     return out
 
