@@ -53,6 +53,8 @@ class TrainConfig:
     lr_specular: float = 0.01
     lr_transparency: float = 0.05
     adam_eps: float = 1e-15
+    adam: str = "selective"              # selective (touched rows only, per-row bias correction) | dense
+    lr_multiplier: float = 1.0           # x every learning rate (ray batches see each Gaussian less often)
     # losses (method section 3); a weight of 0 switches a term off
     w_l1: float = 1.2
     w_dssim: float = 0.4
@@ -143,6 +145,7 @@ class TrainConfig:
         need(0 <= self.sh_degree <= 3, "sh_degree", "must be 0..3")
         need(self.max_order in (1, 2), "max_order", "must be 1 or 2")
         need(self.priors in ("all", "none"), "priors", "use all or none")
+        need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
         comps = self.components.replace(" ", "")
         need(comps in ("auto", "all") or set(comps.split(",")) <= set(cv.ROLES), "components",
@@ -174,11 +177,12 @@ PRESETS = {
     # Adam moves a logit by about lr per step, so opacity resets and densification intervals are set in iterations
     # that let opacities recover (the paper's 3k / 100 iterations are 5 % / 0.17 % of 60k, far fewer steps here).
     "tiny": dict(iterations=300, patches=16, patch=8, sh_degree=0, grid_n=8, grid_k=2, init_min_points=1500,
-                 max_gaussians=6000, checkpoint_every=100, densify_every=0.1, reset_every=0.3),
-    "quick": dict(iterations=1500, patches=32, patch=8, sh_degree=1, grid_n=12, grid_k=2, init_min_points=3000,
-                  max_gaussians=15000, densify_every=0.05, reset_every=0.15),
+                 max_gaussians=6000, checkpoint_every=100, densify_every=0.1, reset_every=0.3, lr_multiplier=3.0),
+    "quick": dict(iterations=800, patches=32, patch=8, sh_degree=1, grid_n=12, grid_k=2, init_min_points=3000,
+                  max_gaussians=15000, densify_every=0.05, reset_every=0.15, lr_multiplier=2.0),
     "bench": dict(iterations=4000, patches=48, patch=8, sh_degree=1, grid_n=16, grid_k=2, init_min_points=6000,
-                  max_gaussians=40000, checkpoint_every=500, densify_every=0.025, reset_every=0.1),
+                  max_gaussians=40000, checkpoint_every=500, densify_every=0.025, reset_every=0.1,
+                  lr_multiplier=1.5),
 }
 VARIANTS = {
     "supplement": dict(warmup=5 / 60, transmission_from=5 / 60, reflection_from=5 / 60, refine_from=40 / 60,

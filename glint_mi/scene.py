@@ -210,9 +210,8 @@ def grid_points(lo, hi, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def ray_points(ds: Dataset, n: int, extent: float, rng: np.random.Generator, depth_range=None):
-    """``n`` points on random training-pixel rays at random depths (``depth_range``: the SfM points' 5-95 %
-    distances from the cameras when there are any, else [0.2, 4] x extent), with the pixel's colour: a random
-    initialisation restricted to what the cameras see, used when SfM gives too few points."""
+    """``n`` points on random training-pixel rays at random depths (``depth_range``, default [0.2, 4] x extent),
+    with the pixel's colour: a random initialisation restricted to what the cameras see (no SfM points)."""
     from .batch import pixel_rays
 
     views = ds.train_views or ds.views
@@ -240,16 +239,19 @@ def initial_sets(scene: OptimScene, ds: Dataset, cfg, rng: np.random.Generator, 
     lo, hi, extent = scene_bounds(ds, pts if len(pts) else None)
     report["sfm_points"] = int(len(pts))
     if need_sfm and len(pts) < cfg.init_min_points:
-        # too few SfM points to start from (small images): top up with random points along training rays
+        # too few SfM points to start from: top up. Around the SfM points when there are some (jittered copies
+        # stay on the surfaces; uniform points along rays would sit in front of them as floaters that a narrow
+        # camera arc never removes), else along training rays (the images are too small for SIFT).
         extra = cfg.init_min_points - len(pts)
-        depth_range = None
         if len(pts) >= 8:
-            centres = np.array([v.c2w[:3, 3] for v in ds.views])
-            dist = np.linalg.norm(pts[:, None] - centres[None], axis=-1).min(1)
-            depth_range = tuple(np.percentile(dist, [5, 95]))
-        rp, rc = ray_points(ds, extra, extent, rng, depth_range)
+            pick = rng.integers(0, len(pts), extra)
+            rp = pts[pick] + rng.normal(size=(extra, 3)) * knn_scales(pts)[pick, None]
+            rc = cols[pick]
+            report["random_points"] = f"{extra} jittered copies of SfM points"
+        else:
+            rp, rc = ray_points(ds, extra, extent, rng)
+            report["random_points"] = f"{extra} random points on training rays"
         pts, cols = np.concatenate([pts, rp]), np.concatenate([cols, rc])
-        report["random_points"] = int(extra)
     sets = {}
     for role, spec in specs.items():
         if spec.init == "file":
@@ -265,7 +267,7 @@ def initial_sets(scene: OptimScene, ds: Dataset, cfg, rng: np.random.Generator, 
                                    f"init_min_points = 0; raise init_min_points or add sparse/0/points3D.")
             gs = points_set(pts, cols, cfg.init_opacity, cfg.sh_degree, rng)
             report[role] = f"{len(gs)} Gaussians from {report['sfm_points']} SfM points" + (
-                f" + {report['random_points']} random points on training rays" if "random_points" in report else "")
+                f" + {report['random_points']}" if "random_points" in report else "")
         else:
             n, k = spec.grid_n or cfg.grid_n, spec.grid_k or cfg.grid_k
             gp = grid_points(lo, hi, n, k, rng)

@@ -104,7 +104,7 @@ class Trainer:
         self.bounds = (lo, hi)
         self.extent = float(extent)
         self.report["init"] = {**rep, "extent": self.extent, "box": [lo.tolist(), hi.tolist()]}
-        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps)
+        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
         self.strategy = Strategy(self.cfg, self.extent, np.random.default_rng([self.cfg.seed, 1]))  # own stream
         self.dropped: dict[str, str] = {}
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -114,9 +114,10 @@ class Trainer:
 
     def _lrs(self):
         c = self.cfg
-        return {"means": c.lr_position * self.extent, "log_scales": c.lr_scale, "quats_wxyz": c.lr_rotation,
-                "logit_opacity": c.lr_opacity, "sh": c.lr_sh_dc, "sh_rest": c.lr_sh_rest,
-                "logit_specular": c.lr_specular, "logit_transparency": c.lr_transparency}
+        lrs = {"means": c.lr_position * self.extent, "log_scales": c.lr_scale, "quats_wxyz": c.lr_rotation,
+               "logit_opacity": c.lr_opacity, "sh": c.lr_sh_dc, "sh_rest": c.lr_sh_rest,
+               "logit_specular": c.lr_specular, "logit_transparency": c.lr_transparency}
+        return {k: v * c.lr_multiplier for k, v in lrs.items()}
 
     def _build(self):
         """(Re)create the Mitsuba scene for the current sets (once per run; sizes change through traverse)."""
@@ -320,7 +321,8 @@ class Trainer:
                 np.nan_to_num(v, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
             if self._densifying():
                 self.strategy.accumulate(role, len(gs), g["means"], g["logit_opacity"])
-            self.adam.step(role, gs, g, {"means": lr_pos})
+            touched = (g["logit_opacity"] != 0) | np.any(g["means"] != 0, axis=1) | np.any(g["sh"][:, 0] != 0, axis=1)
+            self.adam.step(role, gs, g, {"means": lr_pos}, rows=touched)
 
     def _densifying(self, it=None):
         c, it = self.cfg, self.it if it is None else it
@@ -484,7 +486,7 @@ class Trainer:
         self.history = json.loads(str(z["history"]))
         roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)
         self.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
-        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps)
+        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
         self.adam.load_state_dict({k[5:]: v for k, v in z.items() if k.startswith("adam/")})
         srng = np.random.default_rng()
         srng.bit_generator.state = json.loads(str(z["strategy_rng"]))

@@ -86,6 +86,7 @@ def test_densify_prune_keeps_set_adam_and_stats_aligned(rng):
                  "logit_specular": 1, "logit_transparency": 1})
     adam._state("interface", g)
     adam.state["interface"]["logit_specular"][0][:] = np.arange(n) + 100  # moments tagged by row
+    adam.state["interface"]["logit_specular"][2][:] = np.arange(n) + 1  # and step counts
     strat = Strategy(cfg, extent=1.0, rng=np.random.default_rng(0))
     grad = np.zeros((n, 3))
     grad[:, 0] = np.arange(n)  # the top half by gradient: rows 10..19
@@ -105,6 +106,8 @@ def test_densify_prune_keeps_set_adam_and_stats_aligned(rng):
         if m[row] != 0:  # copied rows carry their moments
             assert m[row] == tag + 100
     assert np.count_nonzero(m == 0) == 2 * len(large_top)  # split children start with fresh moments
+    counts = adam.state["interface"]["logit_specular"][2]
+    assert np.all((counts == 0) | (counts == tags + 1))
     assert len(strat.grad_sum["interface"]) == len(new)
 
 
@@ -262,3 +265,25 @@ def test_cli_scene_optimize_evaluate(room, tmp_path):
     again = subprocess.run(env_py + ["glint_mi.optimize", str(scene), "--preset", "tiny", "--out", str(run)],
                            capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert again.returncode == 2 and "--resume" in again.stderr
+
+
+def test_selective_adam_steps_only_touched_rows(rng):
+    g = GaussianSet.from_activated(rng.normal(size=(4, 3)), 0.1, opacities=0.5)
+    before = g.logit_opacity.copy()
+    lrs = {"means": 0.1, "log_scales": 0.1, "quats_wxyz": 0.1, "logit_opacity": 0.1, "sh": 0.1, "sh_rest": 0.1,
+           "logit_specular": 0.1, "logit_transparency": 0.1}
+    grads = {f: np.zeros_like(getattr(g, f), dtype=np.float64) for f in RAW_FIELDS}
+    grads["logit_opacity"][:] = [1e-6, 0, -3, 0]
+    touched = grads["logit_opacity"] != 0
+    adam = Adam(lrs)
+    for _ in range(3):  # a first (bias-corrected) Adam step is lr * sign(g), whatever the gradient's size
+        adam.step("interface", g, grads, rows=touched)
+    np.testing.assert_allclose(g.logit_opacity - before, [-0.3, 0, 0.3, 0], atol=1e-5)
+    dense = Adam(lrs, selective=False)
+    g2 = GaussianSet.from_activated(rng.normal(size=(4, 3)), 0.1, opacities=0.5)
+    b2 = g2.logit_opacity.copy()
+    grads["logit_opacity"][:] = [1.0, 0, 0, 0]
+    dense.step("interface", g2, grads)
+    grads["logit_opacity"][:] = 0.0
+    dense.step("interface", g2, grads)  # dense Adam keeps moving a row that got no gradient this time
+    assert g2.logit_opacity[0] - b2[0] < -0.15 and np.all(g2.logit_opacity[1:] == b2[1:])
