@@ -149,7 +149,7 @@ def load_run(run: str | Path):
     cfg = TrainConfig.load(run / "config.json")
     info = json.loads((run / "run.json").read_text())
     ds = load_dataset(info["dataset"])
-    glint_mi.set_variant("llvm_ad_rgb")
+    glint_mi.set_variant()
     import mitsuba as mi
 
     from .conventions import ROLES

@@ -68,7 +68,7 @@ class Trainer:
                  dataset: Dataset | None = None, log=print, resume: bool = False):
         import glint_mi
 
-        glint_mi.set_variant("llvm_ad_rgb")
+        glint_mi.set_variant()  # $GLINT_VARIANT (e.g. cuda_ad_rgb) or llvm_ad_rgb
         self.run_dir, self.cfg, self.log = Path(run_dir), cfg, log
         self.scene_spec = scene
         self.ds = dataset
