@@ -77,7 +77,8 @@ def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
             a.axis("off")
             f = runs[name] / "renders" / f"{view}_{key}.png"
             if view and f.exists():
-                a.imshow(np.asarray(Image.open(f)))
+                img = np.asarray(Image.open(f))
+                a.imshow(img, cmap="gray" if img.ndim == 2 else None, vmin=0, vmax=255)  # t: 0..1, not rescaled
             if i == 0:
                 a.set_title(title, fontsize=8)
         ax[i, 0].text(-0.05, 0.5, name, transform=ax[i, 0].transAxes, ha="right", va="center", fontsize=8)

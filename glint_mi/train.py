@@ -317,6 +317,8 @@ class Trainer:
                 g["logit_transparency"][:] = 0.0
                 if not (role == "transmission" and c.max_order == 2):
                     g["logit_specular"][:] = 0.0
+            elif "transmission" not in self.sets:  # no transmission set: tau means nothing, keeps its initial value
+                g["logit_transparency"][:] = 0.0
             for f, v in g.items():
                 np.nan_to_num(v, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
             if self._densifying():

