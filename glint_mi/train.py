@@ -133,11 +133,14 @@ class Trainer:
         self.params = mi.traverse(self.integ)
         self._push()
 
-    def _push(self):
+    def _push(self, roles=None):
+        """Send the sets' current values (and sizes) to the renderer; a `data` change rebuilds that set's BVH, so
+        only ``roles`` (default all) are sent."""
         import drjit as dr
-        import mitsuba as mi
 
         for role, gs in self.sets.items():
+            if roles is not None and role not in roles:
+                continue
             arrays = gs.to_mitsuba(self.cfg.kernel)
             for k in PARAM_KEYS:
                 key = f"{role}.{k}"
@@ -202,7 +205,7 @@ class Trainer:
         import mitsuba as mi
 
         c = self.cfg
-        p, M = b.patch, len(b.flat)
+        p = b.patch
         nb = patch_neighbours(b.patches, p)
         gt = mi.Color3f(*floats(b.rgb))
         terms = {k: 0.0 for k in LOSS_NAMES}
@@ -343,7 +346,7 @@ class Trainer:
                 fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
                 self.strategy.reset(it, role, self.sets[role], self.adam, fields)
         self._auto_components(st)
-        self._push()  # new values (and sizes) to the renderer; a `data` change rebuilds the sets' BVHs
+        self._push(st["trained"])  # only trained sets change (Adam, densify, resets): others keep their BVH
 
     def _auto_components(self, st) -> None:
         """components: auto — keep transmission / reflection only where the evidence calls for them."""

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from glint_mi import losses as L
-from glint_mi.batch import RayBank, patch_neighbours, pixel_rays
+from glint_mi.batch import patch_neighbours, pixel_rays
 from glint_mi.config import ConfigError, TrainConfig
 from glint_mi.data import DatasetError, load_dataset
 from glint_mi.dataset.generate import Preset, make_scene

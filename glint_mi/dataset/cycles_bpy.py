@@ -187,7 +187,6 @@ def build(desc: dict, root: Path):
 def main(argv):
     desc_path, out_dir = Path(argv[0]), Path(argv[1])
     desc = json.loads(desc_path.read_text())
-    root = desc_path.parent
     scene, cam = build(desc, Path(desc["root"]))
     out_dir.mkdir(parents=True, exist_ok=True)
     want = set(argv[2:])
