@@ -139,7 +139,8 @@ def load_run(run: str | Path):
     from .config import TrainConfig
     from .data import load_dataset
     from .gaussians import GaussianSet
-    from .train import RunError, sets_scene_dict
+    from .examples import gaussian_scene_dict
+    from .train import RunError
 
     run = Path(run)
     model = run / "model"
@@ -155,7 +156,7 @@ def load_run(run: str | Path):
     from .conventions import ROLES
 
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
-    scene = mi.load_dict(sets_scene_dict(sets, cfg.kernel, components="all", max_order=cfg.max_order,
+    scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, components="all", max_order=cfg.max_order,
                                          max_hits=cfg.max_hits, fresnel=cfg.fresnel))
     ckpt = run / "checkpoint.npz"
     train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None

@@ -69,14 +69,19 @@ def camera_dict(width=96, height=54, spp=1, origin=(0.3, -1.8, 1.0), target=(0.0
             "sampler": {"type": "independent", "sample_count": spp}}
 
 
-def scene_dict(sets: dict[str, GaussianSet], kernel="surfel", width=96, height=54, **integrator_props) -> dict:
-    """A Mitsuba scene dict: the glint integrator with one glint_gaussians shape per set, and a camera."""
+def gaussian_scene_dict(sets: dict[str, GaussianSet], kernel="surfel", **integrator_props) -> dict:
+    """A Mitsuba scene dict: the glint integrator with one glint_gaussians shape per set (no sensor)."""
     from glint_mi_plugins.glint_gaussians import make_shape
 
     integ = {"type": "glint", **integrator_props}
     for role, s in sets.items():
         integ[role] = make_shape(s, kernel=kernel, role=role, shape_id=role)
-    return {"type": "scene", "integrator": integ, "sensor": camera_dict(width, height)}
+    return {"type": "scene", "integrator": integ}
+
+
+def scene_dict(sets: dict[str, GaussianSet], kernel="surfel", width=96, height=54, **integrator_props) -> dict:
+    """:func:`gaussian_scene_dict` plus a camera."""
+    return {**gaussian_scene_dict(sets, kernel, **integrator_props), "sensor": camera_dict(width, height)}
 
 
 def write_scene(folder: str | Path, sets: dict[str, GaussianSet], width=96, height=54, kernel="surfel") -> Path:

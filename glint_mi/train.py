@@ -28,6 +28,7 @@ from . import losses as L
 from .batch import Batch, RayBank, patch_neighbours
 from .config import TrainConfig
 from .data import Dataset, DatasetError, load_dataset
+from .examples import gaussian_scene_dict
 from .gaussians import GaussianSet
 from .render import aligned, floats
 from .scene import OptimScene, initial_sets, read_scene
@@ -52,15 +53,6 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
 
 def atomic_write_text(path: Path, text: str) -> None:
     atomic_write_bytes(path, text.encode())
-
-
-def sets_scene_dict(sets: dict[str, GaussianSet], kernel: str, **integrator_props) -> dict:
-    from glint_mi_plugins.glint_gaussians import make_shape
-
-    integ = {"type": "glint", **integrator_props}
-    for role, gs in sets.items():
-        integ[role] = make_shape(gs, kernel=kernel, role=role, shape_id=role)
-    return {"type": "scene", "integrator": integ}
 
 
 class Trainer:
@@ -128,7 +120,7 @@ class Trainer:
         props = {"components": "all", "max_order": self.cfg.max_order,
                  "max_hits": self.cfg.max_hits, "fresnel": self.cfg.fresnel,
                  "aovs": "depth,normal,transparency,interface,alpha,weights"}
-        self.scene = mi.load_dict(sets_scene_dict(self.sets, self.cfg.kernel, **props))
+        self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, **props))
         self.integ = self.scene.integrator()
         self.params = mi.traverse(self.integ)
         self._push()
