@@ -7,7 +7,10 @@ Writes CSV, a markdown table with the Pareto front marked, and a plot (train tim
 
     .venv/bin/python benchmarks/bench_tradeoff.py --data scenes/glass_room --preset quick --out benchmarks/results/tradeoff
     .venv/bin/python benchmarks/bench_tradeoff.py --tiny            # a minute-scale smoke run
-Resolution is not varied here: a resolution is a dataset (`python -m glint_mi.dataset make --preset ...`).
+Resolution: `train 1/2 res` trains on 2 x 2 box-averaged photos and priors (same rays per iteration), evaluated at
+full resolution. `--no-glass-data` adds the components question on the same room without its glass
+(`python -m glint_mi.dataset make DIR --no-glass`). Variants whose configuration equals one already trained (the
+base appears in several groups) reuse that run ("trained as" column).
 """
 from __future__ import annotations
 
@@ -24,9 +27,9 @@ import glint_mi  # noqa: E402
 glint_mi.set_variant()
 
 from glint_mi.scene import scene_xml  # noqa: E402
-from glint_mi.tradeoff import GRID, mesh_reference_trade, pareto, run_variants  # noqa: E402
+from glint_mi.tradeoff import GRID, NO_GLASS, mesh_reference_trade, pareto, run_variants  # noqa: E402
 
-KEYS = ("psnr", "normal_mae", "absrel", "t_iou", "train_s", "fps")
+KEYS = ("trained_as", "psnr", "normal_mae", "absrel", "t_iou", "train_s", "fps")
 
 
 def plot(rows, path):
@@ -43,7 +46,8 @@ def plot(rows, path):
             a.scatter([r["train_s"] for r in sel], [r[q] for r in sel], label=g, s=18)
             for r in sel:
                 a.annotate(r["variant"], (r["train_s"], r[q]), fontsize=6)
-        front = [r for r, f in zip(rows, pareto(rows, quality=q, higher_is_better=better)) if f]
+        same = [r for r in rows if r["group"] != "components (no glass)"]  # the front: one scene only
+        front = [r for r, f in zip(same, pareto(same, quality=q, higher_is_better=better)) if f]
         front.sort(key=lambda r: r["train_s"])
         a.plot([r["train_s"] for r in front], [r[q] for r in front], "k--", lw=0.8, label="Pareto front")
         a.set_xlabel("train time (s, 2 CPU cores)"), a.set_ylabel(q)
@@ -57,6 +61,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=ROOT / "scenes" / "glass_room", help="a generated scene folder")
     ap.add_argument("--preset", default="quick", choices=["tiny", "quick", "bench"])
+    ap.add_argument("--no-glass-data", type=Path, help="the same room without glass (components question)")
     ap.add_argument("--groups", default=",".join(GRID), help=f"comma list of {list(GRID)}")
     ap.add_argument("--iterations", type=int, help="base iterations (default: the preset's)")
     ap.add_argument("--spps", default="4,16,64", help="spp of the mesh-mode vs path comparison")
@@ -64,16 +69,24 @@ def main(argv=None) -> int:
     ap.add_argument("--tiny", action="store_true", help="smoke run: tiny preset, 30 iterations, two groups")
     args = ap.parse_args(argv)
     if args.tiny:
-        args.preset, args.iterations, args.groups, args.spps = "tiny", 30, "budget,components", "2,8"
+        args.preset, args.iterations, args.groups, args.spps = "tiny", 30, "budget,resolution", "2,8"
     args.out.mkdir(parents=True, exist_ok=True)
     xml = args.out / "scene.xml"
     xml.write_text(scene_xml(args.data))
     base = {"iterations": args.iterations} if args.iterations else {}
-    rows = []
+    rows, seen = [], {}
     for g in [x for x in args.groups.split(",") if x]:
-        for r in run_variants(xml, args.out / "runs" / g, GRID[g], args.preset, **base):
+        if g not in GRID:
+            ap.error(f"unknown group '{g}'; use a comma list of {list(GRID)}")
+        for r in run_variants(xml, args.out / "runs" / g, GRID[g], args.preset, seen=seen, **base):
             rows.append({"group": g, **r})
-    front = pareto(rows)
+    if args.no_glass_data:
+        xml_ng = args.out / "scene_no_glass.xml"
+        xml_ng.write_text(scene_xml(args.no_glass_data))
+        for r in run_variants(xml_ng, args.out / "runs" / "no_glass", NO_GLASS, args.preset, seen=seen, **base):
+            rows.append({"group": "components (no glass)", **r})
+    glass_rows = [r for r in rows if r["group"] != "components (no glass)"]
+    front = pareto(glass_rows) + pareto(rows[len(glass_rows):])  # each room its own front
     with open(args.out / "training.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=["group", "variant", *KEYS, "pareto"], extrasaction="ignore")
         w.writeheader()
@@ -82,17 +95,19 @@ def main(argv=None) -> int:
                            ("group", "variant", *KEYS)}, "pareto": p})
     lines = ["| group | variant | " + " | ".join(KEYS) + " | Pareto (time vs PSNR) |",
              "|---|---|" + "---|" * (len(KEYS) + 1)]
-    fmt = lambda v: "-" if v is None or v != v else f"{v:.4g}"
+    fmt = lambda v: v if isinstance(v, str) else "-" if v is None or v != v else f"{v:.4g}"
     for r, p in zip(rows, front):
         lines.append(f"| {r['group']} | {r['variant']} | " + " | ".join(fmt(r.get(k)) for k in KEYS)
                      + f" | {'yes' if p else ''} |")
     mesh = mesh_reference_trade(tuple(int(s) for s in args.spps.split(",")))
     with open(args.out / "mesh_vs_path.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=["renderer", "spp", "seconds", "rel_error"])
+        w = csv.DictWriter(f, fieldnames=["renderer", "max_depth", "spp", "seconds", "rel_error"])
         w.writeheader()
         w.writerows(mesh)
-    lines += ["", "| renderer | spp | seconds | mean rel. error vs 1024-spp path |", "|---|---|---|---|"]
-    lines += [f"| {m['renderer']} | {m['spp']} | {m['seconds']:.3f} | {m['rel_error']:.4f} |" for m in mesh]
+    lines += ["", "| renderer | max_depth | spp | seconds | mean rel. error vs 1024-spp path (max_depth 64) |",
+              "|---|---|---|---|---|"]
+    lines += [f"| {m['renderer']} | {m['max_depth']} | {m['spp']} | {m['seconds']:.3f} | {m['rel_error']:.4f} |"
+              for m in mesh]
     text = "\n".join(lines) + "\n"
     (args.out / "tradeoff.md").write_text(text)
     plot(rows, args.out / "tradeoff.png")

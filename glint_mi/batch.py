@@ -51,29 +51,59 @@ class Batch:
     patch: int
 
 
+def downsampled_view(view: View, k: int) -> View:
+    """The camera of ``view`` with pixels ``k`` times larger (trailing rows / columns that do not fill a block are
+    dropped): the ray through a coarse pixel centre passes through the centre of its k x k block of fine pixels."""
+    if k == 1:
+        return view
+    K = view.K.copy()
+    K[:2] /= k
+    return dataclasses.replace(view, width=view.width // k, height=view.height // k, K=K)
+
+
+def block_mean(a: np.ndarray, k: int) -> np.ndarray:
+    """[H, W, ...] -> [H // k, W // k, ...] by averaging k x k blocks (an area filter, like a lower-resolution
+    sensor)."""
+    if k == 1:
+        return a
+    h, w = a.shape[0] // k, a.shape[1] // k
+    a = a[:h * k, :w * k]
+    return a.reshape(h, k, w, k, *a.shape[2:]).mean(axis=(1, 3))
+
+
 class RayBank:
-    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: bool = False):
+    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: bool = False,
+                 downsample: int = 1):
+        k = int(downsample)
+        fine = views
+        views = [downsampled_view(v, k) for v in fine]
+        if k > 1 and any(v.width < 3 or v.height < 3 for v in views):
+            raise ValueError(f"train_downsample = {k} leaves images smaller than 3 x 3 pixels; use a smaller factor.")
         self.views = views
+        self.downsample = k
         self.sizes = [(v.height, v.width) for v in views]
         self.offsets = np.cumsum([0] + [h * w for h, w in self.sizes])
-        self.rgb = np.concatenate([v.load_image().reshape(-1, 3) for v in views]).astype(np.float32)
+        self.rgb = np.concatenate([block_mean(v.load_image(), k).reshape(-1, 3) for v in fine]).astype(np.float32)
         self.dirs = np.concatenate([pixel_rays(v) for v in views]).astype(np.float32)
         self.origins = np.array([v.c2w[:3, 3] for v in views], np.float32)
         self.axes = np.array([camera_axes_cv(v) for v in views], np.float32)
         self.priors = {}
         for kind in ("depth", "normal", "albedo"):
-            maps = [load_prior(root, v, kind) if use_priors else None for v in views]
+            maps = [load_prior(root, v, kind) if use_priors else None for v in fine]
             if all(m is not None for m in maps):
+                maps = [block_mean(m, k) for m in maps]
+                if kind == "normal" and k > 1:
+                    maps = [m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-12) for m in maps]
                 self.priors[kind] = np.concatenate([m.reshape(h * w, -1) for m, (h, w) in zip(maps, self.sizes)])
         self.priors.setdefault("depth", None)
         self.glass = None
         if glass_masks:
-            gts = [v.load_gt() for v in views]
+            gts = [v.load_gt() for v in fine]
             if any(g is None for g in gts):
                 from .data import DatasetError
 
                 raise DatasetError(f"{root}: trans_masks = gt needs gt/<view>.exr for every training view.")
-            self.glass = np.concatenate([g["glass"].reshape(-1) for g in gts]).astype(np.float32)
+            self.glass = np.concatenate([block_mean(g["glass"], k).reshape(-1) for g in gts]).astype(np.float32)
 
     @property
     def has(self) -> set[str]:

@@ -28,6 +28,8 @@ class TrainConfig:
     iterations: int = 1500
     patches: int = 32
     patch: int = 8
+    train_downsample: int = 1            # train on photos and priors box-averaged by this factor (1 = full
+    #                                      resolution); evaluation always renders the test views at full resolution
     # model
     kernel: str = "surfel"
     sh_degree: int = 1                   # highest SH degree; raised one band every sh_every of the run
@@ -140,6 +142,8 @@ class TrainConfig:
 
         need(self.iterations >= 1, "iterations", "must be >= 1")
         need(self.patches >= 1, "patches", "must be >= 1")
+        need(isinstance(self.train_downsample, int) and self.train_downsample >= 1, "train_downsample",
+             "must be an integer >= 1 (2 = train on half-resolution images)")
         need(self.patch >= 3, "patch", "must be >= 3 (D-SSIM and normal consistency work on patches)")
         need(self.kernel in cv.KERNELS, "kernel", f"use one of {cv.KERNELS}")
         need(0 <= self.sh_degree <= 3, "sh_degree", "must be 0..3")

@@ -26,7 +26,11 @@ GRID = {
                    "all three": {"components": "all"}, "auto": {"components": "auto"}},
     "order": {"first order": {"max_order": 1, "components": "all"},
               "max_order 2": {"max_order": 2, "components": "all"}},
+    # rays per iteration stay the same; each ray then covers a 2 x 2 block (evaluation at full resolution)
+    "resolution": {"train 1/1 res": {}, "train 1/2 res": {"train_downsample": 2}},
 }
+# the components question on a room WITHOUT glass (same room, `python -m glint_mi.dataset make --no-glass`)
+NO_GLASS = {"interface": {"components": "interface"}, "all three": {"components": "all"}, "auto": {"components": "auto"}}
 
 
 def _overrides(cfg_base, ov: dict) -> dict:
@@ -41,8 +45,14 @@ def _overrides(cfg_base, ov: dict) -> dict:
 
 
 def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: str = "tiny", log=print,
-                 **base) -> list[dict]:
-    """Train every variant (resumable: a finished one is read back) and return one row per variant."""
+                 seen: dict | None = None, **base) -> list[dict]:
+    """Train every variant (resumable: a finished one is read back) and return one row per variant.
+
+    ``seen`` (shared across calls on the same scene) maps a resolved configuration to its result: a variant equal
+    to one already trained (e.g. "iters x1" and "SH 1" are both the base) is reported from that run, not retrained.
+    """
+    import dataclasses
+
     from .config import TrainConfig
     from .evaluate import evaluate
     from .scene import read_scene
@@ -50,13 +60,16 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
 
     rows = []
     base_cfg = TrainConfig.for_preset(preset, **base)
+    seen = {} if seen is None else seen
     for name, ov in variants.items():
-        run = Path(out) / name.replace(" ", "_").replace("+", "plus")
+        run = Path(out) / name.replace(" ", "_").replace("+", "plus").replace("/", "_")
         done = run / "metrics.json"
-        if done.exists():
+        cfg = TrainConfig.for_preset(preset, **{**base, **_overrides(base_cfg, ov)})
+        key = (str(scene_xml), json.dumps(dataclasses.asdict(cfg), sort_keys=True))
+        res, trained_as = seen.get(key, (None, name))
+        if res is None and done.exists():
             res = json.loads(done.read_text())
-        else:
-            cfg = TrainConfig.for_preset(preset, **{**base, **_overrides(base_cfg, ov)})
+        elif res is None:
             if (run / "checkpoint.npz").exists():
                 tr = Trainer(run, cfg, resume=True, log=lambda *a: None)
             else:
@@ -65,7 +78,8 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
             res = evaluate(tr.integ_for_eval(), tr.ds.test_views, run, r["train_s"])
             res = {k: v for k, v in res.items() if k not in ("per_view", "renders")}
             log(f"{name}: {r['train_s']:.0f} s, PSNR {res['metrics']['psnr']:.2f}")
-        rows.append({"variant": name, **res["metrics"]})
+        seen[key] = (res, trained_as)
+        rows.append({"variant": name, "trained_as": trained_as, **res["metrics"]})
     return rows
 
 
@@ -81,8 +95,10 @@ def pareto(rows: list[dict], cost: str = "train_s", quality: str = "psnr", highe
     return flags
 
 
-def mesh_reference_trade(spps=(4, 16, 64), ref_spp: int = 1024, width: int = 48, height: int = 36) -> list[dict]:
-    """Error vs a ``ref_spp`` path-traced reference and warm time, for ``path`` and the first-order mesh mode."""
+def mesh_reference_trade(spps=(4, 16, 64), ref_spp: int = 1024, width: int = 48, height: int = 36,
+                         depths=(3, 6, 64)) -> list[dict]:
+    """Error vs a ``ref_spp`` path-traced reference (max_depth 64) and warm time, for ``path`` at every spp and
+    ``max_depth`` in ``depths``, and for the first-order mesh mode at every spp."""
     import mitsuba as mi
 
     from .meshes import glass_room_dict
@@ -92,13 +108,14 @@ def mesh_reference_trade(spps=(4, 16, 64), ref_spp: int = 1024, width: int = 48,
                                                           ref_spp)), seed=99))
     rows = []
     for spp in spps:
-        for name, integ in (("path", {"type": "path", "max_depth": 64}), ("glint mesh mode", {"type": "glint",
-                                                                                              "max_depth": 64})):
+        for name, integ in [("path", {"type": "path", "max_depth": d}) for d in depths] + [
+                ("glint mesh mode", {"type": "glint", "max_depth": 64})]:
             scene = mi.load_dict(glass_room_dict(integ, True, width, height, spp))
             render_buffers(scene, spp=1)  # warm-up: compile
             t0 = time.perf_counter()
             img = render_buffers(scene, seed=3)["rgb"]
             dt = time.perf_counter() - t0
             err = float(np.abs(img - ref).mean() / ref.mean())
-            rows.append({"renderer": name, "spp": spp, "seconds": dt, "rel_error": err})
+            rows.append({"renderer": name, "max_depth": integ["max_depth"], "spp": spp, "seconds": dt,
+                         "rel_error": err})
     return rows

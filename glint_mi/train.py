@@ -75,7 +75,7 @@ class Trainer:
         else:
             self._fresh()
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
-                            glass_masks=cfg.trans_masks == "gt")
+                            glass_masks=cfg.trans_masks == "gt", downsample=cfg.train_downsample)
         self.report["priors"] = sorted(self.bank.has)
         from .dataset.priors import priors_are_derived
 

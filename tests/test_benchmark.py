@@ -67,5 +67,11 @@ def test_tradeoff_script_tiny(tmp_path):
                        capture_output=True, text=True, cwd=ROOT, timeout=1800)
     assert r.returncode == 0, r.stderr[-3000:]
     rows = list(csv.DictReader(open(tmp_path / "training.csv")))
-    assert {x["variant"] for x in rows} >= {"iters x0.5", "iters x1", "interface", "all three"}
-    assert (tmp_path / "tradeoff.png").exists() and "glint mesh mode" in (tmp_path / "tradeoff.md").read_text()
+    by = {x["variant"]: x for x in rows}
+    assert set(by) >= {"iters x0.5", "iters x1", "train 1/1 res", "train 1/2 res"}
+    # the base configuration appears in both groups and is trained once
+    assert by["train 1/1 res"]["trained_as"] == "iters x1" and by["train 1/1 res"]["psnr"] == by["iters x1"]["psnr"]
+    assert by["train 1/2 res"]["trained_as"] == "train 1/2 res"
+    assert not (tmp_path / "runs" / "resolution" / "train_1_1_res").exists()
+    md = (tmp_path / "tradeoff.md").read_text()
+    assert (tmp_path / "tradeoff.png").exists() and "glint mesh mode" in md and "| path | 3 |" in md

@@ -197,6 +197,25 @@ def test_cli_make_tiny(tmp_path):
     assert "scene_003: 3 views" in r.stdout
     assert json.loads((tmp_path / "summary.json").read_text())["scenes"][0]["scene"] == "scene_003"
     assert not any(p.name.endswith(".partial") for p in tmp_path.iterdir())
+    # a rerun resumes: the finished scene is skipped, not regenerated
+    stamp = (tmp_path / "scene_003" / "meta.json").stat().st_mtime_ns
+    r = subprocess.run([sys.executable, "-m", "glint_mi.dataset", "make", str(tmp_path), "--scenes", "1", "--seed", "3",
+                        "--preset", "tiny", "--views", "3", "--spp", "4"], capture_output=True, text=True, cwd=ROOT,
+                       timeout=600)
+    assert r.returncode == 0 and "already complete" in r.stdout, r.stdout + r.stderr
+    assert (tmp_path / "scene_003" / "meta.json").stat().st_mtime_ns == stamp
+
+
+def test_room_without_glass_is_the_same_room():
+    """--no-glass drops exactly the six glass panels; every other part is identical (a controlled comparison)."""
+    a, b = build_room(4), build_room(4, glass=False)
+    glass = [p.name for p in a.parts if p.glass]
+    assert len(glass) == 6 and not any(p.glass for p in b.parts)
+    rest = [p for p in a.parts if not p.glass]
+    assert [p.name for p in rest] == [p.name for p in b.parts]
+    for p, q in zip(rest, b.parts):
+        np.testing.assert_array_equal(p.mesh.vertices, q.mesh.vertices)
+    np.testing.assert_array_equal(a.case_lo, b.case_lo)
 
 
 def test_sfm_points_lie_on_surfaces(tmp_path):

@@ -49,6 +49,38 @@ def test_pixel_rays_match_mitsuba_sensor(room):
     assert np.allclose(pixel_rays(v, px), ref, atol=1e-5)
 
 
+def test_train_downsample_bank(room, tmp_path):
+    """train_downsample = 2: coarse rays pass through the centres of 2 x 2 fine-pixel blocks, targets and priors are
+    block means, and a trainer with it runs (evaluation stays at full resolution)."""
+    from glint_mi.batch import RayBank
+
+    ds = load_dataset(room)
+    fine, coarse = RayBank(ds.train_views, room), RayBank(ds.train_views, room, downsample=2)
+    v = ds.train_views[0]
+    h, w = v.height // 2, v.width // 2
+    assert coarse.sizes[0] == (h, w) and coarse.offsets[-1] == sum((x.height // 2) * (x.width // 2)
+                                                                    for x in ds.train_views)
+    img = fine.rgb[:v.height * v.width].reshape(v.height, v.width, 3)
+    assert np.allclose(coarse.rgb[:h * w].reshape(h, w, 3), img[:2 * h, :2 * w].reshape(h, 2, w, 2, 3).mean((1, 3)),
+                       atol=1e-6)
+    # the coarse ray of pixel (x, y) is the normalised mean of the four fine rays' image-plane points
+    def plane(d):
+        return d / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))[..., None]
+    fd = plane(fine.dirs[:v.height * v.width].reshape(v.height, v.width, 3))
+    cd = coarse.dirs[:h * w].reshape(h, w, 3)
+    mean = fd[:2 * h, :2 * w].reshape(h, 2, w, 2, 3).mean((1, 3))
+    assert np.allclose(cd, mean / np.linalg.norm(mean, axis=-1, keepdims=True), atol=1e-5)
+    if coarse.priors.get("normal") is not None:
+        assert np.allclose(np.linalg.norm(coarse.priors["normal"], axis=-1), 1, atol=1e-5)
+    with pytest.raises(ConfigError, match="train_downsample"):
+        tiny_cfg(train_downsample=0)
+    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=3, train_downsample=2), scene=read_scene(room.parent / "scene.xml"),
+                 log=lambda *a: None)
+    assert tr.bank.sizes[0] == (h, w)
+    r = tr.train(progress=False)
+    assert r["iterations"] == 3 and all(np.isfinite(s.means).all() for s in tr.sets.values())
+
+
 def test_raw_gradients_chain_rule_matches_finite_differences(rng):
     """A linear functional of the renderer's arrays: raw_gradients == central FD through to_mitsuba (1e-3 rel)."""
     g = GaussianSet.from_activated(rng.normal(size=(5, 3)), rng.uniform(0.05, 0.2, (5, 3)), rng.normal(size=(5, 4)),

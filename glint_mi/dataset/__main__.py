@@ -23,6 +23,11 @@ def main(argv=None) -> int:
                          "'full' also runs SfM without poses and reports its pose error")
     mk.add_argument("--priors", choices=["derived", "none"], default="derived",
                     help="write imperfect depth/normal/albedo priors derived from ground truth (labelled as such)")
+    mk.add_argument("--no-glass", action="store_true",
+                    help="the same rooms without the case's glass panels (frame and objects stay): a control scene")
+    mk.add_argument("--overwrite", action="store_true",
+                    help="regenerate scenes that are already complete (default: skip them, so an interrupted "
+                         "multi-scene run resumes where it stopped)")
     pr = sub.add_parser("priors", help="(re)derive imperfect priors for a generated scene")
     pr.add_argument("scene", type=Path)
     pr.add_argument("--seed", type=int, default=0)
@@ -63,13 +68,20 @@ def main(argv=None) -> int:
     summary = []
     for i in range(args.scenes):
         name = f"scene_{args.seed + i:03d}"
+        done = args.out / name / "meta.json"
+        if done.exists() and not args.overwrite:
+            meta = json.loads(done.read_text())
+            print(f"{name}: already complete ({meta['views']} views), skipped; --overwrite regenerates it")
+            summary.append({"scene": name, "skipped": True, **{k: meta.get(k) for k in (
+                "total_seconds", "gt_noise_psnr_db", "glass_pixel_fraction", "case_support")}})
+            continue
         with tqdm(total=preset.views, desc=name, unit="view", file=sys.stderr) as bar:
             def progress(done, total):
                 bar.n = done
                 bar.refresh()
             meta = make_scene(args.out / name, args.seed + i, preset, progress,
                               sfm=args.sfm or ("none" if args.preset == "tiny" else "known"),
-                              priors=args.priors == "derived")
+                              priors=args.priors == "derived", glass=not args.no_glass)
         summary.append({"scene": name, **{k: meta[k] for k in ("total_seconds", "gt_noise_psnr_db",
                                                                 "glass_pixel_fraction", "case_support")}})
         pts = meta["sfm"].get("points3D", 0)
@@ -80,6 +92,7 @@ def main(argv=None) -> int:
             print(f"  full SfM: {json.dumps(meta['sfm']['full_sfm'])}")
     total = time.perf_counter() - t0
     (args.out / "summary.json").write_text(json.dumps({"preset": args.preset, "total_seconds": total,
+                                                       "scenes_seconds": sum(s["total_seconds"] or 0 for s in summary),
                                                        "scenes": summary}, indent=1))
     print(f"{args.scenes} scene(s) in {total:.1f} s -> {args.out}")
     return 0

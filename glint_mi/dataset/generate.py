@@ -237,8 +237,10 @@ def split_views(names: list[str], every: int = 8) -> dict:
 
 
 def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=None, sfm: str = "known",
-               priors: bool = True) -> dict:
+               priors: bool = True, glass: bool = True) -> dict:
     """Generate, render and export one scene into ``folder`` (written to a temporary folder, then moved).
+
+    ``glass=False``: the same room without the case's glass panels (frame and objects stay).
 
     ``sfm``: ``known`` (SfM points triangulated with the true poses), ``full`` (also SfM without poses, its pose
     error reported in meta.json), ``none`` (no points3D)."""
@@ -254,7 +256,7 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
     t0 = time.perf_counter()
-    room = build_room(seed)
+    room = build_room(seed, glass)
     cams = trajectory(room, preset.views, preset.width, preset.height, seed)
     tex_rel = write_assets(tmp, room)
     exposure = auto_exposure(glint_mi.load_file(write_scene_xml(tmp, room, cams, preset.spp, tex_rel)))
@@ -270,7 +272,7 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     (tmp / "split.json").write_text(json.dumps(split, indent=1))
     meta = {"generator": "glint_mi.dataset", "seed": seed, "preset": dataclasses.asdict(preset),
             "room_size_m": room.size.round(3).tolist(), "case_lo": room.case_lo.round(4).tolist(),
-            "case_hi": room.case_hi.round(4).tolist(), "case_support": room.support,
+            "case_hi": room.case_hi.round(4).tolist(), "case_support": room.support, "glass": glass,
             "furniture": sorted({p.name.split("_")[0] for p in room.parts if p.aabb is not None
                                  and not p.name.startswith("case")}),
             "views": len(cams), "sfm": sfm_stats,

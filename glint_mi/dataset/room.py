@@ -140,8 +140,11 @@ def _overlap(lo1, hi1, lo2, hi2, margin=0.0, dims=3):
 
 
 # ------------------------------------------------------------------ builder
-def build_room(seed: int) -> RoomScene:
-    """A random room with furniture, lights, openings and a glass case resting on a support."""
+def build_room(seed: int, glass: bool = True) -> RoomScene:
+    """A random room with furniture, lights, openings and a glass case resting on a support.
+
+    ``glass=False`` builds the same room (same random draws) with the case's six glass panels left out: its frame
+    and objects stay, so a room with and one without glass differ only by the glass (the components comparison)."""
     rng = np.random.default_rng(seed)
     sources = natural_images()
     textures: dict[str, np.ndarray] = {}
@@ -234,7 +237,7 @@ def build_room(seed: int) -> RoomScene:
         break
     else:
         raise RuntimeError(f"seed {seed}: could not place the glass case (room too cluttered); try another seed.")
-    parts += _case_parts(lo, hi, rng, tex)
+    parts += [p for p in _case_parts(lo, hi, rng, tex) if glass or not p.glass]
     return RoomScene(size, parts, textures, lo, hi, support, door, window, sky=float(rng.uniform(0.6, 1.2)))
 
 
