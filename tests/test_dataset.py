@@ -206,6 +206,29 @@ def test_cli_make_tiny(tmp_path):
     assert (tmp_path / "scene_003" / "meta.json").stat().st_mtime_ns == stamp
 
 
+def test_interrupted_scene_resumes_with_identical_views(tmp_path):
+    """A run stopped after two views keeps them; the rerun renders only the rest and matches an uninterrupted run."""
+    preset = Preset.named("tiny", views=4, spp=4)
+
+    def stop_after_two(done, total):
+        if done == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        make_scene(tmp_path / "a", seed=5, preset=preset, progress=stop_after_two, sfm="none", priors=False)
+    assert not (tmp_path / "a").exists() and len(list((tmp_path / "a.partial" / "images").glob("*.png"))) == 2
+    meta = make_scene(tmp_path / "a", seed=5, preset=preset, sfm="none", priors=False)
+    assert meta["views_resumed"] == 2 and not (tmp_path / "a" / "partial.json").exists()
+    make_scene(tmp_path / "b", seed=5, preset=preset, sfm="none", priors=False)
+    for f in sorted((tmp_path / "b" / "gt").glob("*.exr")):
+        a, b = read_gt_exr(tmp_path / "a" / "gt" / f.name), read_gt_exr(f)
+        assert all(np.array_equal(a[k], b[k]) for k in b), f.name
+    # another seed does not reuse the partial views of this one
+    with pytest.raises(KeyboardInterrupt):
+        make_scene(tmp_path / "c", seed=5, preset=preset, progress=stop_after_two, sfm="none", priors=False)
+    assert make_scene(tmp_path / "c", seed=6, preset=preset, sfm="none", priors=False)["views_resumed"] == 0
+
+
 def test_room_without_glass_is_the_same_room():
     """--no-glass drops exactly the six glass panels; every other part is identical (a controlled comparison)."""
     a, b = build_room(4), build_room(4, glass=False)

@@ -167,24 +167,34 @@ def render_views(scene, folder: Path, cams: list[Camera], spp: int, progress=Non
     (folder / "images").mkdir(exist_ok=True)
     (folder / "gt").mkdir(exist_ok=True)
     t0 = time.perf_counter()
-    glass_fraction = []
+    glass_fraction, rendered = [], 0
     for i, cam in enumerate(cams):
+        png_path, gt_path = folder / "images" / f"{cam.name}.png", folder / "gt" / f"{cam.name}.exr"
+        if png_path.exists() and gt_path.exists():  # resumed: both are written atomically, the PNG last
+            glass_fraction.append(float(read_gt_exr(gt_path)["T"].mean()))
+            if progress:
+                progress(i + 1, len(cams))
+            continue
         sensor = scene.sensors()[i]
         rgb = np.array(mi.render(scene, sensor=sensor, spp=spp, seed=i))
         buf = first_surface_buffers(scene, sensor)
         if not np.isfinite(rgb).all():
             raise RuntimeError(f"{cam.name}: the path tracer returned NaN/Inf")
-        write_gt_exr(folder / "gt" / f"{cam.name}.exr", rgb, buf)
+        write_gt_exr(gt_path, rgb, buf)
         png = np.clip(np.round(linear_to_srgb(rgb) * 255), 0, 255).astype(np.uint8)
-        Image.fromarray(png).save(folder / "images" / f"{cam.name}.png")
+        tmp_png = png_path.with_name(png_path.stem + ".tmp.png")
+        Image.fromarray(png).save(tmp_png)
+        os.replace(tmp_png, png_path)
         glass_fraction.append(float(buf["T"].mean()))
+        rendered += 1
         if progress:
             progress(i + 1, len(cams))
     render_s = time.perf_counter() - t0
     # noise floor: an independent render of view 0 at the same spp
     a = np.array(mi.render(scene, sensor=scene.sensors()[0], spp=spp, seed=0))
     b = np.array(mi.render(scene, sensor=scene.sensors()[0], spp=spp, seed=10_000))
-    return {"render_seconds": render_s, "seconds_per_view": render_s / len(cams), "spp": spp,
+    return {"render_seconds": render_s, "seconds_per_view": render_s / max(rendered, 1), "spp": spp,
+            "views_resumed": len(cams) - rendered,
             "gt_noise_psnr_db": noise_psnr(a, b), "glass_pixel_fraction": float(np.mean(glass_fraction))}
 
 
@@ -253,13 +263,22 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     glint_mi.set_variant(None if mi.variant() is None else mi.variant())
     folder = Path(folder)
     tmp = folder.with_name(folder.name + ".partial")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
+    # an interrupted run of the same scene (same seed, preset, glass) resumes: finished views are kept
+    state = {"seed": seed, "preset": dataclasses.asdict(preset), "glass": glass}
+    state_file = tmp / "partial.json"
+    old = json.loads(state_file.read_text()) if state_file.exists() else {}
+    if {k: old.get(k) for k in state} != state:
+        shutil.rmtree(tmp, ignore_errors=True)
+        old = {}
+    tmp.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     room = build_room(seed, glass)
     cams = trajectory(room, preset.views, preset.width, preset.height, seed)
     tex_rel = write_assets(tmp, room)
-    exposure = auto_exposure(glint_mi.load_file(write_scene_xml(tmp, room, cams, preset.spp, tex_rel)))
+    exposure = old.get("exposure")
+    if exposure is None:
+        exposure = auto_exposure(glint_mi.load_file(write_scene_xml(tmp, room, cams, preset.spp, tex_rel)))
+        state_file.write_text(json.dumps({**state, "exposure": exposure}))
     scene = glint_mi.load_file(write_scene_xml(tmp, room, cams, preset.spp, tex_rel, exposure))
     stats = render_views(scene, tmp, cams, preset.spp, progress)
     points, sfm_stats = None, {"mode": "none"}
@@ -283,6 +302,9 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
         derive_priors(tmp, seed, scene=scene)
         meta["priors"] = "derived from ground truth (see priors/PRIORS.json)"
     (tmp / "meta.json").write_text(json.dumps(meta, indent=1))
+    state_file.unlink()
+    for leftover in [*tmp.glob("images/*.tmp.*"), *tmp.glob("gt/*.tmp.*")]:  # from a run killed mid-write
+        leftover.unlink()
     if folder.exists():
         shutil.rmtree(folder)
     os.replace(tmp, folder)
