@@ -4,7 +4,8 @@
     python -m glint_mi.benchmark --data DIR --methods glint,envgs --preset tiny --out OUT   # a subset
 
 ``--data`` holds generated scenes (``python -m glint_mi.dataset make``; ``--make-data N`` generates N there first).
-One run per method x scene under ``OUT/runs/<scene>/<method>``; a run with a ``metrics.json`` is skipped and an
+One run per method x scene (x seed: ``--seeds N``, runs ``<method>@seed<k>`` for k > 0) under
+``OUT/runs/<scene>/<method>``; a run with a ``metrics.json`` is skipped and an
 interrupted one resumes from its checkpoint, so the benchmark can be stopped and restarted. Writes ``OUT/results.csv``,
 ``OUT/table.md`` (the paper's columns per scene and the mean, plus SSIM, glass-only MAE/AbsRel, transparency IoU)
 and ``OUT/figures/<scene>.png`` (per-method renders of the first test view side by side).
@@ -92,7 +93,7 @@ def write_results(rows: list[dict], out: Path, header: str = "") -> str:
     """results.csv (one row per method x scene) and table.md (per scene, then the mean per method)."""
     from .train import atomic_write_text
 
-    keys = ["method", "scene", *COLUMNS]
+    keys = ["method", "scene", "seed", *COLUMNS]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
     w.writeheader()
@@ -102,16 +103,23 @@ def write_results(rows: list[dict], out: Path, header: str = "") -> str:
     md = [header] if header else []
     scenes = sorted({r["scene"] for r in rows})
     methods = list(dict.fromkeys(r["method"] for r in rows))
+    seeds = sorted({r.get("seed", 0) for r in rows})
+
+    def stat(sel, fn):
+        return {k: float(fn([r.get(k) if r.get(k) is not None else np.nan for r in sel])) for k in COLUMNS}
+
     for s in scenes:
-        md.append(f"### {s}\n")
-        md.append(M.table({r["method"]: r for r in rows if r["scene"] == s}, COLUMNS))
-    md.append(f"### mean over {len(scenes)} scene(s)\n")
-    means = {}
-    for m in methods:
-        sel = [r for r in rows if r["method"] == m]
-        means[m] = {k: float(np.nanmean([r.get(k, np.nan) if r.get(k) is not None else np.nan for r in sel]))
-                    for k in COLUMNS}
-    md.append(M.table(means, COLUMNS))
+        here = [r for r in rows if r["scene"] == s]
+        if len(seeds) == 1:
+            md.append(f"### {s}\n")
+            md.append(M.table({r["method"]: r for r in here}, COLUMNS))
+            continue
+        md.append(f"### {s}: mean over seeds {seeds}\n")
+        md.append(M.table({m: stat([r for r in here if r["method"] == m], np.nanmean) for m in methods}, COLUMNS))
+        md.append(f"### {s}: standard deviation over seeds {seeds} (run-to-run spread)\n")
+        md.append(M.table({m: stat([r for r in here if r["method"] == m], np.nanstd) for m in methods}, COLUMNS))
+    md.append(f"### mean over {len(scenes)} scene(s)" + (f" and {len(seeds)} seeds" if len(seeds) > 1 else "") + "\n")
+    md.append(M.table({m: stat([r for r in rows if r["method"] == m], np.nanmean) for m in methods}, COLUMNS))
     text = "\n".join(md)
     atomic_write_text(out / "table.md", text)
     return text
@@ -126,8 +134,12 @@ def main(argv=None) -> int:
     ap.add_argument("--variant", default="supplement", choices=["supplement", "release"])
     ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")
     ap.add_argument("--iterations", type=int, help="override the preset's iterations (same for every method)")
+    ap.add_argument("--seeds", type=int, default=1,
+                    help="train every method x scene with seeds 0..N-1; the table then gives mean and spread")
     ap.add_argument("--out", type=Path, default=Path("out/benchmark"))
     args = ap.parse_args(argv)
+    if args.seeds < 1:
+        ap.error("--seeds must be >= 1")
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = [m for m in methods if m not in METHODS]
@@ -150,12 +162,13 @@ def main(argv=None) -> int:
 
     for scene in scenes:
         runs = {}
-        for m in methods:
-            run = args.out / "runs" / scene.name / m
-            print(f"[{scene.name}] {m} ...", flush=True)
-            res = run_one(m, scene, run, args.preset, args.variant, log=lambda *a: None, **extra)
-            rows.append({"method": m, "scene": scene.name, **res["metrics"]})
-            runs[m] = run
+        for seed in range(args.seeds):
+            for m in methods:
+                run = args.out / "runs" / scene.name / (m if seed == 0 else f"{m}@seed{seed}")
+                print(f"[{scene.name}] {m} seed {seed} ...", flush=True)
+                res = run_one(m, scene, run, args.preset, args.variant, log=lambda *a: None, seed=seed, **extra)
+                rows.append({"method": m, "scene": scene.name, "seed": seed, **res["metrics"]})
+                runs.setdefault(m, run)
         (args.out / "figures").mkdir(exist_ok=True)
         figure(scene.name, runs, args.out / "figures" / f"{scene.name}.png")
     derived = any((s / "priors" / "PRIORS.json").exists() for s in scenes)

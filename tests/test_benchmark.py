@@ -52,6 +52,21 @@ def test_benchmark_tiny(tmp_path):
     assert bad.returncode == 2 and "unknown method" in bad.stderr
 
 
+def test_results_with_seeds_give_mean_and_spread(tmp_path):
+    """--seeds N: the CSV keeps one row per seed; the table shows the mean and the standard deviation per method."""
+    from glint_mi.benchmark import COLUMNS, write_results
+
+    rows = [{"method": m, "scene": "s", "seed": k, **{c: base + k for c in COLUMNS}}
+            for m, base in (("glint", 10.0), ("3dgs", 20.0)) for k in (0, 1, 2)]
+    text = write_results(rows, tmp_path)
+    assert len(list(csv.DictReader(open(tmp_path / "results.csv")))) == 6
+    assert "mean over seeds [0, 1, 2]" in text and "standard deviation over seeds" in text
+    assert "| glint | 11 | 11 |" in text and "| 3dgs | 21 | 21 |" in text  # means of base + 0, 1, 2
+    assert f"| glint | {0.8165:.4g} |" in text                              # population std of (0, 1, 2)
+    one = write_results([r for r in rows if r["seed"] == 0], tmp_path)
+    assert "standard deviation" not in one and "| glint | 10 |" in one
+
+
 def test_pareto_front():
     from glint_mi.tradeoff import pareto
     rows = [{"train_s": 1, "psnr": 20}, {"train_s": 2, "psnr": 25}, {"train_s": 3, "psnr": 24},
