@@ -67,6 +67,18 @@ def test_results_with_seeds_give_mean_and_spread(tmp_path):
     assert "standard deviation" not in one and "| glint | 10 |" in one
 
 
+def test_mesh_reference_trade_error_falls_with_spp():
+    """path's error against the high-spp reference must fall with spp (a warm-up render once left every timed render
+    at 1 spp), and time must grow with it."""
+    from glint_mi.tradeoff import mesh_reference_trade
+
+    rows = mesh_reference_trade(spps=(1, 64), ref_spp=256, width=24, height=18, depths=(64,))
+    path = {r["spp"]: r for r in rows if r["renderer"] == "path"}
+    assert path[64]["rel_error"] < 0.6 * path[1]["rel_error"], path
+    mesh = {r["spp"]: r for r in rows if r["renderer"] == "glint mesh mode"}
+    assert mesh[64]["rel_error"] < mesh[1]["rel_error"], mesh
+
+
 def test_pareto_front():
     from glint_mi.tradeoff import pareto
     rows = [{"train_s": 1, "psnr": 20}, {"train_s": 2, "psnr": 25}, {"train_s": 3, "psnr": 24},
