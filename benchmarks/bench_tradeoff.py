@@ -64,7 +64,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-glass-data", type=Path, help="the same room without glass (components question)")
     ap.add_argument("--groups", default=",".join(GRID), help=f"comma list of {list(GRID)}")
     ap.add_argument("--iterations", type=int, help="base iterations (default: the preset's)")
-    ap.add_argument("--spps", default="4,16,64", help="spp of the mesh-mode vs path comparison")
+    ap.add_argument("--spps", default="4,16,64,256", help="spp of the mesh-mode vs path comparison")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "tradeoff")
     ap.add_argument("--tiny", action="store_true", help="smoke run: tiny preset, 30 iterations, two groups")
     args = ap.parse_args(argv)

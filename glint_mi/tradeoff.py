@@ -111,9 +111,10 @@ def mesh_reference_trade(spps=(4, 16, 64), ref_spp: int = 1024, width: int = 48,
         for name, integ in [("path", {"type": "path", "max_depth": d}) for d in depths] + [
                 ("glint mesh mode", {"type": "glint", "max_depth": 64})]:
             scene = mi.load_dict(glass_room_dict(integ, True, width, height, spp))
-            render_buffers(scene, spp=1)  # warm-up: compile (this also sets the sensor's sampler to 1 spp) ...
+            render_buffers(scene, spp=spp, seed=1)  # warm-up: compile (the spp is part of the kernel)
             t0 = time.perf_counter()
-            img = render_buffers(scene, spp=spp, seed=3)["rgb"]  # ... so the timed render names its spp
+            img = render_buffers(scene, spp=spp, seed=3)["rgb"]  # a render always names its spp: mi.render(spp=k)
+            #                                                      leaves the sensor's sampler at k
             dt = time.perf_counter() - t0
             err = float(np.abs(img - ref).mean() / ref.mean())
             rows.append({"renderer": name, "max_depth": integ["max_depth"], "spp": spp, "seconds": dt,
