@@ -41,10 +41,10 @@ def mesh_mode_vs_path(width=48, height=36, spp=64, seed=7) -> dict:
 
     path_scene = mi.load_dict(glass_room_dict({"type": "path", "max_depth": 64}, True, width, height, spp))
     fo_scene = mi.load_dict(glass_room_dict({"type": "glint", "max_depth": 64}, True, width, height, spp))
-    # compile both renderers' kernels first: the timings below are warm. A render with spp=1 also sets the
-    # sensor's sampler to 1 spp, so the timed renders name their spp.
-    mi.render(path_scene, spp=1)
-    render_buffers(fo_scene, spp=1)
+    # compile both renderers' kernels first, at the timed spp (it is part of the kernel): the timings below are warm.
+    # mi.render(spp=k) leaves the sensor's sampler at k, so every render names its spp.
+    mi.render(path_scene, spp=spp, seed=seed + 1)
+    render_buffers(fo_scene, spp=spp, seed=seed + 1)
     t0 = time.perf_counter()
     ref = np.array(mi.render(path_scene, spp=spp, seed=seed))
     t1 = time.perf_counter()

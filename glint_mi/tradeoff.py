@@ -7,6 +7,7 @@ against a high-spp ``path`` reference. ``benchmarks/bench_tradeoff.py`` runs the
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -51,8 +52,6 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
     ``seen`` (shared across calls on the same scene) maps a resolved configuration to its result: a variant equal
     to one already trained (e.g. "iters x1" and "SH 1" are both the base) is reported from that run, not retrained.
     """
-    import dataclasses
-
     from .config import TrainConfig
     from .evaluate import evaluate
     from .scene import read_scene
