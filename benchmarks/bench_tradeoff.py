@@ -29,6 +29,7 @@ glint_mi.set_variant()
 from glint_mi.scene import scene_xml  # noqa: E402
 from glint_mi.tradeoff import GRID, NO_GLASS, mesh_reference_trade, pareto, run_variants  # noqa: E402
 
+NO_GLASS_GROUP = "components (no glass)"  # another room: its own Pareto front
 KEYS = ("trained_as", "psnr", "normal_mae", "absrel", "t_iou", "train_s", "fps")
 
 
@@ -46,7 +47,7 @@ def plot(rows, path):
             a.scatter([r["train_s"] for r in sel], [r[q] for r in sel], label=g, s=18)
             for r in sel:
                 a.annotate(r["variant"], (r["train_s"], r[q]), fontsize=6)
-        same = [r for r in rows if r["group"] != "components (no glass)"]  # the front: one scene only
+        same = [r for r in rows if r["group"] != NO_GLASS_GROUP]  # the front: one scene only
         front = [r for r, f in zip(same, pareto(same, quality=q, higher_is_better=better)) if f]
         front.sort(key=lambda r: r["train_s"])
         a.plot([r["train_s"] for r in front], [r[q] for r in front], "k--", lw=0.8, label="Pareto front")
@@ -84,8 +85,8 @@ def main(argv=None) -> int:
         xml_ng = args.out / "scene_no_glass.xml"
         xml_ng.write_text(scene_xml(args.no_glass_data))
         for r in run_variants(xml_ng, args.out / "runs" / "no_glass", NO_GLASS, args.preset, seen=seen, **base):
-            rows.append({"group": "components (no glass)", **r})
-    glass_rows = [r for r in rows if r["group"] != "components (no glass)"]
+            rows.append({"group": NO_GLASS_GROUP, **r})
+    glass_rows = [r for r in rows if r["group"] != NO_GLASS_GROUP]
     front = pareto(glass_rows) + pareto(rows[len(glass_rows):])  # each room its own front
     with open(args.out / "training.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=["group", "variant", *KEYS, "pareto"], extrasaction="ignore")

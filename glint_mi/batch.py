@@ -80,7 +80,6 @@ class RayBank:
         if k > 1 and any(v.width < 3 or v.height < 3 for v in views):
             raise ValueError(f"train_downsample = {k} leaves images smaller than 3 x 3 pixels; use a smaller factor.")
         self.views = views
-        self.downsample = k
         self.sizes = [(v.height, v.width) for v in views]
         self.offsets = np.cumsum([0] + [h * w for h, w in self.sizes])
         self.rgb = np.concatenate([block_mean(v.load_image(), k).reshape(-1, 3) for v in fine]).astype(np.float32)

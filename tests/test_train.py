@@ -70,8 +70,7 @@ def test_train_downsample_bank(room, tmp_path):
     cd = coarse.dirs[:h * w].reshape(h, w, 3)
     mean = fd[:2 * h, :2 * w].reshape(h, 2, w, 2, 3).mean((1, 3))
     assert np.allclose(cd, mean / np.linalg.norm(mean, axis=-1, keepdims=True), atol=1e-5)
-    if coarse.priors.get("normal") is not None:
-        assert np.allclose(np.linalg.norm(coarse.priors["normal"], axis=-1), 1, atol=1e-5)
+    assert np.allclose(np.linalg.norm(coarse.priors["normal"], axis=-1), 1, atol=1e-5)  # the room has priors
     with pytest.raises(ConfigError, match="train_downsample"):
         tiny_cfg(train_downsample=0)
     tr = Trainer(tmp_path / "run", tiny_cfg(iterations=3, train_downsample=2), scene=read_scene(room.parent / "scene.xml"),

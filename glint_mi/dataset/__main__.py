@@ -7,6 +7,8 @@ import sys
 import time
 from pathlib import Path
 
+SUMMARY_KEYS = ("total_seconds", "gt_noise_psnr_db", "glass_pixel_fraction", "case_support")  # per scene
+
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m glint_mi.dataset", description=__doc__)
@@ -72,8 +74,7 @@ def main(argv=None) -> int:
         if done.exists() and not args.overwrite:
             meta = json.loads(done.read_text())
             print(f"{name}: already complete ({meta['views']} views), skipped; --overwrite regenerates it")
-            summary.append({"scene": name, "skipped": True, **{k: meta.get(k) for k in (
-                "total_seconds", "gt_noise_psnr_db", "glass_pixel_fraction", "case_support")}})
+            summary.append({"scene": name, "skipped": True, **{k: meta.get(k) for k in SUMMARY_KEYS}})
             continue
         with tqdm(total=preset.views, desc=name, unit="view", file=sys.stderr) as bar:
             def progress(done, total):
@@ -82,8 +83,7 @@ def main(argv=None) -> int:
             meta = make_scene(args.out / name, args.seed + i, preset, progress,
                               sfm=args.sfm or ("none" if args.preset == "tiny" else "known"),
                               priors=args.priors == "derived", glass=not args.no_glass)
-        summary.append({"scene": name, **{k: meta[k] for k in ("total_seconds", "gt_noise_psnr_db",
-                                                                "glass_pixel_fraction", "case_support")}})
+        summary.append({"scene": name, **{k: meta[k] for k in SUMMARY_KEYS}})
         pts = meta["sfm"].get("points3D", 0)
         print(f"{name}: {meta['views']} views in {meta['total_seconds']:.1f} s, GT noise PSNR "
               f"{meta['gt_noise_psnr_db']:.1f} dB, glass pixels {100 * meta['glass_pixel_fraction']:.1f} %, "
