@@ -49,6 +49,12 @@ and the same transport as a first-order reference on mesh scenes with real glass
      (3, c_R), transmission (3, c_T), alpha (A_I), weights (k_d, k_s, k_t), trans_direct (the transmission set seen
      straight from the camera: colour 3, depth, normal 3, alpha; an extra pass). (Default:
      depth,normal,transparency,interface,reflection,transmission,alpha)
+ * - inside_origins
+   - |bool|
+   - ``true`` (default): a Gaussian whose bounding shell contains the ray origin is composited like any other (its
+     kernel counted where it lies ahead of the origin): each pass starts its BVH walk one shell diameter behind the
+     origin. ``false``: Mitsuba's shell test alone, which never reports a shell around the origin (such Gaussians
+     are invisible; kept to measure what the walk back costs).
  * - max_depth
    - |int|
    - Mesh mode: path depth of the ``path`` tracer that gives radiance beyond the glass. (Default: 64)
@@ -74,6 +80,7 @@ from __future__ import annotations
 
 import drjit as dr
 import mitsuba as mi
+import numpy as np
 
 from glint_mi import conventions as cv
 
@@ -103,6 +110,16 @@ class GaussianSetRef:
             raise ValueError(f"glint: the shape nested as '{role}' declares role '{meta.role}'.")
         self.role, self.shape, self.kernel, self.empty = role, shape, meta.kernel, meta.empty
         self.scene = mi.load_dict({"type": "scene", "gaussians": shape})
+        self.refresh()
+
+    def refresh(self) -> None:
+        """Recompute ``reach``, the longest shell diameter of the set (metres): a ray started that far behind its
+        origin enters every shell that contains the origin. An opaque Dr.Jit scalar, so kernels do not recompile
+        when it changes."""
+        params = mi.traverse(self.shape)
+        data = np.array(params["data"], np.float64).reshape(-1, 10)
+        reach = 2.0 * float(params["extent"]) * float(data[:, 3:6].max(initial=0.0)) if len(data) else 0.0
+        self.reach = dr.opaque(mi.Float, reach * (1.0 + 1e-3) + 1e-6)
 
 
 class Composite:
@@ -225,6 +242,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         self.alpha_min = float(props.get("alpha_min", ALPHA_MIN))
         self.alpha_max = float(props.get("alpha_max", ALPHA_MAX))
         self.transmittance_min = float(props.get("transmittance_min", T_MIN))
+        self.inside_origins = bool(props.get("inside_origins", True))
         if not (0.0 <= self.alpha_min < self.alpha_max < 1.0 and 0.0 <= self.transmittance_min < 1.0):
             raise ValueError("glint: need 0 <= alpha_min < alpha_max < 1 and 0 <= transmittance_min < 1.")
         # fresnel = false: EnvGS's blend C = (1 - beta) c_I + beta c_R (no Fresnel, no transmission), for baselines
@@ -287,6 +305,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         for role, s in self.sets.items():
             if not keys or any(k == role or k.startswith(role + ".") for k in keys):
                 s.scene.parameters_changed()
+                s.refresh()
 
     def to_string(self):
         sets = ", ".join(f"{r}={s.kernel}{' (empty)' if s.empty else ''}" for r, s in self.sets.items())
@@ -435,8 +454,11 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         t_stop = mi.Float(self.transmittance_min)
         if weight is not None:
             t_stop = dr.minimum(self.transmittance_min / dr.maximum(dr.detach(weight), self.transmittance_min), 1.0)
-        o = mi.Point3f(dr.detach(o0))
+        origin = mi.Point3f(dr.detach(o0))
         dd = mi.Vector3f(dr.detach(d))
+        # Mitsuba's shell test never reports a shell that contains the ray origin: walk from one shell diameter
+        # behind the origin, and of the shells entered before the origin keep those that contain it.
+        o = origin - dd * gs.reach if self.inside_origins else mi.Point3f(origin)
         T = mi.Float(1.0)
         acc = Composite()
         d_o, d_d = mi.Vector3f(0.0), mi.Vector3f(0.0)
@@ -447,21 +469,41 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         while dr.hint(active, mode="evaluated" if ad else "symbolic", label=f"glint {gs.role}"):
             pi = gs.scene.ray_intersect_preliminary(mi.Ray3f(o, dd), coherent=False, active=active)
             hit = active & pi.is_valid()
+            p = o + dd * pi.t
             # Just past a shell entry the float32 shell test can report the same primitive again: each Gaussian
             # counts once per pass (the last two are remembered) and the step grows until the ray leaves the band.
-            fresh = hit & (pi.prim_index != last0) & (pi.prim_index != last1)
+            new = hit & (pi.prim_index != last0) & (pi.prim_index != last1)
+            # entered behind the origin: counts only if the shell holds the origin (and then not on the hit budget
+            # when it does not)
+            relevant = mi.Bool(True)
+            if self.inside_origins:
+                behind = new & (dr.dot(p - origin, dd) < 0)
+                relevant = ~behind | self._contains(gs, pi.prim_index, origin, behind)
+            fresh = new & relevant
             acc, alpha, g_o, g_d = self._hit(gs, pi.prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad)
             d_o += g_o
             d_d += g_d
             T *= 1.0 - alpha
-            p = o + dd * pi.t
             o = dr.select(hit, p + dd * (_ray_epsilon(p) * step), o)
-            step = dr.select(hit & ~fresh, step * 4.0, 1.0)
-            last1 = dr.select(fresh, last0, last1)
-            last0 = dr.select(fresh, pi.prim_index, last0)
-            hits += 1
+            step = dr.select(hit & ~new, step * 4.0, 1.0)
+            last1 = dr.select(new, last0, last1)
+            last0 = dr.select(new, pi.prim_index, last0)
+            hits += mi.UInt32(dr.select(relevant, 1, 0))
             active = hit & (T > t_stop) & (hits < self.max_hits)
         return (d_o, d_d) if replay else acc
+
+    @staticmethod
+    def _contains(gs: GaussianSetRef, prim_index, point, active):
+        """Whether the bounding shell of each hit primitive contains ``point`` (detached)."""
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.prim_index = prim_index
+        e = gs.shape.eval_attribute_x("ellipsoid", si, active)
+        radius = gs.shape.eval_attribute_1("extent", si, active)
+        q = mi.Quaternion4f(e[6], e[7], e[8], e[9])
+        q = q / dr.maximum(dr.norm(q), 1e-12)
+        local = dr.quat_to_matrix(mi.Matrix3f, q).T @ (point - mi.Point3f(e[0], e[1], e[2]))
+        shell = dr.maximum(mi.Vector3f(e[3], e[4], e[5]) * radius, 1e-30)
+        return active & (dr.squared_norm(local / shell) < 1.0)
 
     def _hit(self, gs, prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad):
         """One hit: forward, add its weighted features to ``acc``; replay (``adjoint`` given), also back-propagate:
