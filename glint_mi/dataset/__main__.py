@@ -27,6 +27,13 @@ def main(argv=None) -> int:
                     help="write imperfect depth/normal/albedo priors derived from ground truth (labelled as such)")
     mk.add_argument("--no-glass", action="store_true",
                     help="the same rooms without the case's glass panels (frame and objects stay): a control scene")
+    mk.add_argument("--renderer", choices=["mitsuba", "cycles"], default="mitsuba",
+                    help="ground truth from Mitsuba's volpath (default) or from Blender Cycles (needs `make "
+                         "cycles-env`): images and every gt pass rendered by Cycles")
+    mk.add_argument("--no-albedo-prior", action="store_true", help="derive depth and normal priors only")
+    mk.add_argument("--see-through", type=float, default=1.0, metavar="P",
+                    help="probability per view that derived depth/normal priors see through the glass (default 1; "
+                         "0: they see the glass surface)")
     mk.add_argument("--overwrite", action="store_true",
                     help="regenerate scenes that are already complete (default: skip them, so an interrupted "
                          "multi-scene run resumes where it stopped)")
@@ -53,6 +60,14 @@ def main(argv=None) -> int:
         print(f"wrote {out} ({len(meta['views'])} views at {args.spp} spp in {meta['seconds']:.1f} s); compare with "
               f"`python -m glint_mi.crosscheck {args.scene}`")
         return 0
+    if args.cmd == "make" and args.renderer == "cycles":
+        from .cycles_render import CyclesUnavailable, find_bpy
+
+        try:
+            find_bpy()
+        except CyclesUnavailable as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 3
     if args.cmd == "priors":
         from .priors import Corruption, derive_priors
 
@@ -82,11 +97,13 @@ def main(argv=None) -> int:
                 bar.refresh()
             meta = make_scene(args.out / name, args.seed + i, preset, progress,
                               sfm=args.sfm or ("none" if args.preset == "tiny" else "known"),
-                              priors=args.priors == "derived", glass=not args.no_glass)
+                              priors=args.priors == "derived", glass=not args.no_glass, renderer=args.renderer,
+                              albedo_prior=not args.no_albedo_prior, see_through=args.see_through)
         summary.append({"scene": name, **{k: meta[k] for k in SUMMARY_KEYS}})
         pts = meta["sfm"].get("points3D", 0)
-        print(f"{name}: {meta['views']} views in {meta['total_seconds']:.1f} s, GT noise PSNR "
-              f"{meta['gt_noise_psnr_db']:.1f} dB, glass pixels {100 * meta['glass_pixel_fraction']:.1f} %, "
+        noise = meta["gt_noise_psnr_db"]
+        print(f"{name}: {meta['views']} views in {meta['total_seconds']:.1f} s ({meta['renderer']}), GT noise PSNR "
+              f"{'n/a' if noise is None else f'{noise:.1f}'} dB, glass pixels {100 * meta['glass_pixel_fraction']:.1f} %, "
               f"case on {meta['case_support']}, {pts} SfM points ({meta['sfm']['mode']})")
         if "full_sfm" in meta["sfm"]:
             print(f"  full SfM: {json.dumps(meta['sfm']['full_sfm'])}")

@@ -75,8 +75,10 @@ def _bsdf(elem, xml_path: Path) -> dict:
                      f"thindielectric, dielectric, roughplastic).")
 
 
-def describe_scene(scene_dir: Path, out: Path, spp: int = 256, max_depth: int = 64, seed: int = 0) -> Path:
-    """Write ``out/description.json`` + ``out/meshes.npz`` for :mod:`cycles_bpy`; returns the JSON path."""
+def describe_scene(scene_dir: Path, out: Path, spp: int = 256, max_depth: int = 64, seed: int = 0,
+                   cameras=None) -> Path:
+    """Write ``out/description.json`` + ``out/meshes.npz`` for :mod:`cycles_bpy`; returns the JSON path.
+    ``cameras`` (objects with name, c2w, width, height, K): default the dataset's views."""
     from plyfile import PlyData
 
     from ..data import load_dataset
@@ -110,9 +112,9 @@ def describe_scene(scene_dir: Path, out: Path, spp: int = 256, max_depth: int = 
         else:
             mat = _bsdf(sh.find("bsdf"), xml_path)
         shapes.append({"id": sid, "material": mat})
-    ds = load_dataset(scene_dir, check_images=False)
+    views = cameras if cameras is not None else load_dataset(scene_dir, check_images=False).views
     cams = []
-    for v in ds.views:
+    for v in views:
         w, h, K = v.width, v.height, v.K
         s = max(w, h)
         cams.append({"name": v.name, "c2w": v.c2w.tolist(),
@@ -121,17 +123,18 @@ def describe_scene(scene_dir: Path, out: Path, spp: int = 256, max_depth: int = 
     out.mkdir(parents=True, exist_ok=True)
     np.savez(out / "meshes.npz", **arrays)
     desc = {"root": str(scene_dir.resolve()), "meshes_npz": str((out / "meshes.npz").resolve()),
-            "shapes": shapes, "environment": env, "cameras": cams, "width": ds.views[0].width,
-            "height": ds.views[0].height, "spp": spp, "max_depth": max_depth, "seed": seed}
+            "shapes": shapes, "environment": env, "cameras": cams, "width": views[0].width,
+            "height": views[0].height, "spp": spp, "max_depth": max_depth, "seed": seed}
     path = out / "description.json"
     path.write_text(json.dumps(desc, indent=1))
     return path
 
 
 def render_cycles(scene_dir: Path, views: list[str] | None = None, spp: int = 256, log=print,
-                  noise_view: bool = True) -> Path:
+                  noise_view: bool = True, cameras=None) -> Path:
     """Render ``views`` (default: the test split) into ``scene_dir/cycles/<view>.exr``; with ``noise_view`` the first
-    view is rendered again with another seed (``<view>.seed1.exr``) to measure Cycles' own noise."""
+    view is rendered again with another seed (``<view>.seed1.exr``) to measure Cycles' own noise. ``cameras``: see
+    :func:`describe_scene` (for a scene whose images do not exist yet)."""
     cmd = find_bpy()
     scene_dir = Path(scene_dir)
     if views is None:
@@ -143,7 +146,7 @@ def render_cycles(scene_dir: Path, views: list[str] | None = None, spp: int = 25
     for seed, names in ((0, views), (1, views[:1] if noise_view else [])):
         if not names:
             continue
-        desc = describe_scene(scene_dir, work / f"desc{seed}", spp=spp, seed=seed)
+        desc = describe_scene(scene_dir, work / f"desc{seed}", spp=spp, seed=seed, cameras=cameras)
         target = work / ("seed1" if seed else "renders")
         args = ([*cmd, str(BPY_SCRIPT), "--"] if len(cmd) > 1 else [*cmd, str(BPY_SCRIPT)]) + [str(desc), str(target),
                                                                                                *names]

@@ -162,7 +162,6 @@ def noise_psnr(a: np.ndarray, b: np.ndarray) -> float:
 def render_views(scene, folder: Path, cams: list[Camera], spp: int, progress=None) -> dict:
     """Path-trace every view of the loaded ``scene``; write images/*.png and gt/*.exr. Returns timing and noise."""
     import mitsuba as mi
-    from PIL import Image
 
     (folder / "images").mkdir(exist_ok=True)
     (folder / "gt").mkdir(exist_ok=True)
@@ -178,13 +177,7 @@ def render_views(scene, folder: Path, cams: list[Camera], spp: int, progress=Non
         sensor = scene.sensors()[i]
         rgb = np.array(mi.render(scene, sensor=sensor, spp=spp, seed=i))
         buf = first_surface_buffers(scene, sensor)
-        if not np.isfinite(rgb).all():
-            raise RuntimeError(f"{cam.name}: the path tracer returned NaN/Inf")
-        write_gt_exr(gt_path, rgb, buf)
-        png = np.clip(np.round(linear_to_srgb(rgb) * 255), 0, 255).astype(np.uint8)
-        tmp_png = png_path.with_name(png_path.stem + ".tmp.png")
-        Image.fromarray(png).save(tmp_png)
-        os.replace(tmp_png, png_path)
+        _write_view(folder, cam.name, rgb, buf)
         glass_fraction.append(float(buf["T"].mean()))
         rendered += 1
         if progress:
@@ -193,9 +186,72 @@ def render_views(scene, folder: Path, cams: list[Camera], spp: int, progress=Non
     # noise floor: an independent render of view 0 at the same spp
     a = np.array(mi.render(scene, sensor=scene.sensors()[0], spp=spp, seed=0))
     b = np.array(mi.render(scene, sensor=scene.sensors()[0], spp=spp, seed=10_000))
-    return {"render_seconds": render_s, "seconds_per_view": render_s / max(rendered, 1), "spp": spp,
+    return {"renderer": "mitsuba", "render_seconds": render_s, "seconds_per_view": render_s / max(rendered, 1),
+            "spp": spp,
             "views_resumed": len(cams) - rendered,
             "gt_noise_psnr_db": noise_psnr(a, b), "glass_pixel_fraction": float(np.mean(glass_fraction))}
+
+
+def render_views_cycles(scene, folder: Path, cams: list[Camera], spp: int, progress=None, chunk: int = 8) -> dict:
+    """Ground truth from Blender Cycles (the optional extra): every view's RGB and its Z, normal and object-index
+    passes become images/*.png and gt/*.exr. Views are rendered in chunks of ``chunk`` (one bpy process each), so
+    an interrupted run resumes at the first view without files. Normals are turned to face each pixel's ray (the
+    protocol's convention; Cycles writes the surface's own normal). ``scene`` (Mitsuba) gives the camera rays only.
+    """
+    import mitsuba as mi
+
+    from glint_mi.render import camera_rays
+
+    from .cycles_render import read_cycles_exr, render_cycles
+
+    (folder / "images").mkdir(exist_ok=True)
+    (folder / "gt").mkdir(exist_ok=True)
+    t0 = time.perf_counter()
+    todo = [c for c in cams if not ((folder / "images" / f"{c.name}.png").exists()
+                                    and (folder / "gt" / f"{c.name}.exr").exists())]
+    noise_db = None
+    for k in range(0, len(todo), chunk):
+        names = [c.name for c in todo[k:k + chunk]]
+        out = render_cycles(folder, names, spp, log=lambda *a: None, noise_view=k == 0, cameras=cams)
+        for name in names:
+            i = next(j for j, c in enumerate(cams) if c.name == name)
+            cy = read_cycles_exr(out / f"{name}.exr")
+            sensor = scene.sensors()[i]
+            w, h = cams[i].width, cams[i].height
+            pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
+            d = np.array(camera_rays(sensor, pix)[0].d).T.reshape(h, w, 3)
+            n = cy["normal"]
+            n = np.where((np.sum(n * d, -1) > 0)[..., None], -n, n)
+            hit = cy["depth"] > 0
+            buf = {"Z": cy["depth"][..., None], "N": np.where(hit[..., None], n, 0.0),
+                   "T": (cy["glass"] * hit)[..., None]}
+            _write_view(folder, name, cy["rgb"], buf)
+        seed1 = sorted(out.glob("*.seed1.exr"))
+        if seed1:
+            a = read_cycles_exr(out / seed1[0].name.replace(".seed1", ""))["rgb"]
+            noise_db = noise_psnr(a, read_cycles_exr(seed1[0])["rgb"])
+        if progress:
+            progress(len(cams) - len(todo) + min(k + chunk, len(todo)), len(cams))
+    shutil.rmtree(folder / "cycles", ignore_errors=True)
+    render_s = time.perf_counter() - t0
+    glass = [float(read_gt_exr(folder / "gt" / f"{c.name}.exr")["T"].mean()) for c in cams]
+    return {"renderer": "cycles", "render_seconds": render_s, "seconds_per_view": render_s / max(len(todo), 1),
+            "spp": spp, "views_resumed": len(cams) - len(todo),
+            "gt_noise_psnr_db": noise_db, "glass_pixel_fraction": float(np.mean(glass))}
+
+
+def _write_view(folder: Path, name: str, rgb: np.ndarray, buf: dict) -> None:
+    """gt/<name>.exr then images/<name>.png, each atomically (a view is complete once its PNG exists)."""
+    from PIL import Image
+
+    png_path, gt_path = folder / "images" / f"{name}.png", folder / "gt" / f"{name}.exr"
+    if not np.isfinite(rgb).all():
+        raise RuntimeError(f"{name}: the renderer returned NaN/Inf")
+    write_gt_exr(gt_path, rgb, buf)
+    png = np.clip(np.round(linear_to_srgb(rgb) * 255), 0, 255).astype(np.uint8)
+    tmp_png = png_path.with_name(png_path.stem + ".tmp.png")
+    Image.fromarray(png).save(tmp_png)
+    os.replace(tmp_png, png_path)
 
 
 def auto_exposure(scene, target: float = 0.2) -> float:
@@ -247,15 +303,26 @@ def split_views(names: list[str], every: int = 8) -> dict:
 
 
 def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=None, sfm: str = "known",
-               priors: bool = True, glass: bool = True) -> dict:
+               priors: bool = True, glass: bool = True, renderer: str = "mitsuba", albedo_prior: bool = True,
+               see_through: float = 1.0) -> dict:
     """Generate, render and export one scene into ``folder`` (written to a temporary folder, then moved).
 
     ``glass=False``: the same room without the case's glass panels (frame and objects stay).
+    ``renderer``: ``mitsuba`` (volpath ground truth) or ``cycles`` (Blender Cycles, the optional extra: images and
+    every ground-truth pass from Cycles, so the room is rendered by an engine the model was not developed on).
+    ``albedo_prior=False`` leaves the albedo prior out; ``see_through`` is the probability per view that derived
+    depth/normal priors see through the glass (0: they see the glass surface, GLINT's video-prior assumption).
 
     ``sfm``: ``known`` (SfM points triangulated with the true poses), ``full`` (also SfM without poses, its pose
     error reported in meta.json), ``none`` (no points3D)."""
     if sfm not in ("known", "full", "none"):
         raise ValueError(f"sfm must be known, full or none (got '{sfm}').")
+    if renderer not in ("mitsuba", "cycles"):
+        raise ValueError(f"renderer must be mitsuba or cycles (got '{renderer}').")
+    if renderer == "cycles":
+        from .cycles_render import find_bpy
+
+        find_bpy()  # fail before any work when the extra is missing
     import mitsuba as mi
 
     import glint_mi
@@ -264,7 +331,7 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     folder = Path(folder)
     tmp = folder.with_name(folder.name + ".partial")
     # an interrupted run of the same scene (same seed, preset, glass) resumes: finished views are kept
-    state = {"seed": seed, "preset": dataclasses.asdict(preset), "glass": glass}
+    state = {"seed": seed, "preset": dataclasses.asdict(preset), "glass": glass, "renderer": renderer}
     state_file = tmp / "partial.json"
     old = json.loads(state_file.read_text()) if state_file.exists() else {}
     if {k: old.get(k) for k in state} != state:
@@ -280,27 +347,33 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
         exposure = auto_exposure(glint_mi.load_file(write_scene_xml(tmp, room, cams, preset.spp, tex_rel)))
         state_file.write_text(json.dumps({**state, "exposure": exposure}))
     scene = glint_mi.load_file(write_scene_xml(tmp, room, cams, preset.spp, tex_rel, exposure))
-    stats = render_views(scene, tmp, cams, preset.spp, progress)
+    write_transforms_json(tmp / "transforms.json", cams)  # the cameras, before rendering (Cycles reads them)
+    split = split_views([c.name for c in cams])
+    (tmp / "split.json").write_text(json.dumps(split, indent=1))
+    render = render_views_cycles if renderer == "cycles" else render_views
+    stats = render(scene, tmp, cams, preset.spp, progress)
     points, sfm_stats = None, {"mode": "none"}
     if sfm != "none":
         xyz, rgb, st = sfm_points(scene, tmp, cams, sfm)
         points, sfm_stats = (xyz, rgb), {"mode": sfm, **st}
     write_colmap_text(tmp / "sparse" / "0", cams, points)
-    write_transforms_json(tmp / "transforms.json", cams)
-    split = split_views([c.name for c in cams])
-    (tmp / "split.json").write_text(json.dumps(split, indent=1))
     meta = {"generator": "glint_mi.dataset", "seed": seed, "preset": dataclasses.asdict(preset),
             "room_size_m": room.size.round(3).tolist(), "case_lo": room.case_lo.round(4).tolist(),
             "case_hi": room.case_hi.round(4).tolist(), "case_support": room.support, "glass": glass,
             "furniture": sorted({p.name.split("_")[0] for p in room.parts if p.aabb is not None
                                  and not p.name.startswith("case")}),
             "views": len(cams), "sfm": sfm_stats,
+            "sfm_images": "Mitsuba path (max_depth 6) renders for SIFT" if sfm != "none" else None,
             "emitter_scale": exposure, **stats, "total_seconds": time.perf_counter() - t0}
     if priors:
         from .priors import derive_priors
 
-        derive_priors(tmp, seed, scene=scene)
-        meta["priors"] = "derived from ground truth (see priors/PRIORS.json)"
+        from .priors import Corruption
+
+        derive_priors(tmp, seed, Corruption(see_through_glass=see_through), scene=scene, albedo=albedo_prior)
+        meta["priors"] = (f"derived from ground truth (see priors/PRIORS.json): depth, normal"
+                          f"{', albedo' if albedo_prior else ' (no albedo prior)'}; see through glass with "
+                          f"probability {see_through:g}")
     (tmp / "meta.json").write_text(json.dumps(meta, indent=1))
     state_file.unlink()
     for leftover in [*tmp.glob("images/*.tmp.*"), *tmp.glob("gt/*.tmp.*")]:  # from a run killed mid-write

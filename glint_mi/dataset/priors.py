@@ -115,9 +115,11 @@ def _behind_glass(scene, sensor, max_steps=16):
             np.array(albedo).T.reshape(h, w, 3))
 
 
-def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None = None, scene=None) -> Path:
+def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None = None, scene=None,
+                  albedo: bool = True) -> Path:
     """Write imperfect priors for every view of a generated scene (``scene``: its loaded scene.xml, loaded here when
-    omitted); returns the priors folder."""
+    omitted; ``albedo=False``: depth and normal only, like an estimator without intrinsic decomposition); returns
+    the priors folder."""
     import glint_mi
     import mitsuba as mi
 
@@ -130,9 +132,16 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None 
     ds = load_dataset(scene_dir)
     scene = scene if scene is not None else glint_mi.load_file(scene_dir / "scene.xml")
     out = scene_dir / "priors"
+    kinds = KINDS if albedo else tuple(k for k in KINDS if k != "albedo")
     for k in KINDS:
-        (out / k).mkdir(parents=True, exist_ok=True)
-    record = {"derived_from_ground_truth": True, "seed": seed, "corruption": dataclasses.asdict(c), "views": {}}
+        if k not in kinds:
+            import shutil
+
+            shutil.rmtree(out / k, ignore_errors=True)
+        else:
+            (out / k).mkdir(parents=True, exist_ok=True)
+    record = {"derived_from_ground_truth": True, "seed": seed, "kinds": list(kinds),
+              "corruption": dataclasses.asdict(c), "views": {}}
     for v in ds.views:
         gt = v.load_gt()
         sensor = mi.load_dict(v.sensor_dict())
@@ -141,7 +150,7 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None 
         through = bool(rng.random() < float(c.see_through_glass))
         depth = np.where(glass & through, z_behind, gt["depth"])
         normal = np.where((glass & through)[..., None], n_behind, gt["normal"])
-        albedo = np.where(glass[..., None], c.glass_albedo, alb)
+        alb_prior = np.where(glass[..., None], c.glass_albedo, alb)
         a, b = rng.uniform(*c.depth_scale), rng.uniform(*c.depth_shift) * np.median(depth[depth > 0])
         valid = depth > 0
         dp = a * depth * (1 + c.depth_noise * rng.normal(size=depth.shape)) + b
@@ -149,10 +158,11 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None 
         n_cam = world_to_opencv_normals(normal, v.c2w)
         n_cam = _blur(n_cam + np.radians(c.normal_noise_deg) * rng.normal(size=n_cam.shape), c.blur_px)
         n_cam /= np.maximum(np.linalg.norm(n_cam, axis=-1, keepdims=True), 1e-9)
-        albedo = np.clip(_blur(albedo + c.albedo_noise * rng.normal(size=albedo.shape), c.blur_px), 0, 1)
+        alb_prior = np.clip(_blur(alb_prior + c.albedo_noise * rng.normal(size=alb_prior.shape), c.blur_px), 0, 1)
         np.save(out / "depth" / f"{v.name}.npy", dp.astype(np.float32))
         np.save(out / "normal" / f"{v.name}.npy", n_cam.astype(np.float32))
-        np.save(out / "albedo" / f"{v.name}.npy", albedo.astype(np.float32))
+        if albedo:
+            np.save(out / "albedo" / f"{v.name}.npy", alb_prior.astype(np.float32))
         record["views"][v.name] = {"depth_scale": float(a), "depth_shift": float(b), "sees_through_glass": through}
     (out / "PRIORS.json").write_text(json.dumps(record, indent=1))
     return out
