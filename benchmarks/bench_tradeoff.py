@@ -74,7 +74,7 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     xml = args.out / "scene.xml"
     xml.write_text(scene_xml(args.data))
-    base = {"iterations": args.iterations} if args.iterations else {}
+    base = {"iterations": args.iterations, "epochs": 0.0} if args.iterations else {}
     rows, seen = [], {}
     for g in [x for x in args.groups.split(",") if x]:
         if g not in GRID:

@@ -133,7 +133,7 @@ def main(argv=None) -> int:
     ap.add_argument("--preset", default="bench", choices=["tiny", "quick", "bench"])
     ap.add_argument("--variant", default="supplement", choices=["supplement", "release"])
     ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")
-    ap.add_argument("--iterations", type=int, help="override the preset's iterations (same for every method)")
+    ap.add_argument("--iterations", type=int, help="override the preset's budget (epochs) with a fixed iteration count (same for every method)")
     ap.add_argument("--seeds", type=int, default=1,
                     help="train every method x scene with seeds 0..N-1; the table then gives mean and spread")
     ap.add_argument("--out", type=Path, default=Path("out/benchmark"))
@@ -155,7 +155,7 @@ def main(argv=None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    extra = {"iterations": args.iterations} if args.iterations else {}
+    extra = {"iterations": args.iterations, "epochs": 0.0} if args.iterations else {}
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     from .evaluate import machine

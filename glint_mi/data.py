@@ -49,7 +49,7 @@ class View:
         """{'rgb' [H,W,3] linear, 'depth' [H,W] planar z, 'normal' [H,W,3] world, 'glass' [H,W]} or None."""
         if self.gt_path is None:
             return None
-        from .dataset.generate import read_gt_exr
+        from .exr import read_gt_exr
 
         ch = read_gt_exr(self.gt_path)
         need = ["R", "G", "B", "Z", "N.X", "N.Y", "N.Z", "T"]

@@ -1,4 +1,5 @@
-"""GLINT's geometric losses and transparency-bootstrapping masks (glint-method.md sections 3 and 4).
+"""GLINT's losses, transparency-bootstrapping masks and their assembly into one batch objective (glint-method.md
+sections 3 and 4).
 
 Differentiable terms take Dr.Jit arrays over a batch of rays, with ``view`` [M] the image each ray belongs to (the
 scale-shift fit of the depth loss is per image). Masks are computed without gradient, on whole images (numpy).
@@ -8,6 +9,8 @@ from __future__ import annotations
 import drjit as dr
 import mitsuba as mi
 import numpy as np
+
+from .config import LOSS_NAMES
 
 
 def depth_fit(depth, prior, mask, view, n_views: int):
@@ -157,3 +160,119 @@ def plausibility(depth_t, depth_i, n_t, n_i, weight, extent: float):
     w = dr.detach(weight)
     term = dr.abs(depth_t - dr.detach(depth_i)) / extent + (1.0 - dr.dot(n_t, dr.detach(n_i)))
     return dr.sum(w * term) / dr.maximum(dr.sum(w), 1e-12)
+
+
+# ------------------------------------------------------- the batch objective
+def _leaf(x):
+    """A detached copy of a traced buffer with gradients enabled: the losses' AD input, whose adjoint the replay
+    back-propagates."""
+    y = type(x)(dr.detach(x))
+    dr.enable_grad(y)
+    return y
+
+
+def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: float):
+    """The training objective on one ray batch (glint-method.md section 3): every term that the stage ``st``
+    switches on, weighted by the config ``c``, on the buffers ``out`` traced for the batch ``b``.
+
+    Returns (terms: weighted value per name of LOSS_NAMES, adjoints: per traced buffer, for the integrator's
+    replay, stats: L_trans mask coverage and each component's share of the image energy)."""
+    from .batch import patch_neighbours
+    from .render import aligned, floats
+
+    p = b.patch
+    nb = patch_neighbours(b.patches, p)
+    gt = mi.Color3f(*floats(b.rgb))
+    terms = {k: 0.0 for k in LOSS_NAMES}
+    stats = {}
+    with dr.resume_grad():
+        rgb = _leaf(mi.Color3f(out["rgb"]))
+        depth, normal, t = _leaf(out["depth"]), _leaf(out["normal"]), _leaf(out["transparency"])
+        leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
+        A = dr.detach(out["alpha"])
+        parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
+        if st["consistency"]:
+            dist = depth / dr.dot(ray.d, fwd)
+            parts["consistency"] = c.w_consistency * depth_normal_consistency(
+                ray.o, ray.d, dist, normal, A > 0.5, nb)
+        if st["depth"]:
+            prior = floats(b.depth_prior)
+            mask = (prior > 0) & (A > 0.5)
+            vid = mi.UInt32(aligned(b.view, np.uint32))
+            parts["depth"] = c.w_depth * depth_loss(depth, prior, mask, vid, n_views)
+        if st["normal"]:
+            axes = [mi.Vector3f(*floats(b.axes[:, :, k])) for k in range(3)]
+            n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
+            prior = mi.Vector3f(*floats(b.normal_prior))
+            valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
+            parts["normal"] = c.w_normal * normal_loss(n_cv, prior, c.tau_n, valid)[0]
+        if "transmission" in st["traced"]:
+            Dc, Dd, Dn, DA = out["trans_direct"]
+            Dc, Dd, Dn, DA = _leaf(mi.Color3f(Dc)), _leaf(Dd), _leaf(Dn), _leaf(DA)
+            leaves["trans_direct"] = (Dc, Dd, Dn, DA)
+            if st["direct"]:
+                parts["direct"] = c.w_direct * (c.w_l1 * l1(Dc, gt) + c.w_dssim * dssim(Dc, gt, p))
+                if st["consistency"]:
+                    parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
+                        depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
+                                                 dr.detach(DA) > 0.5, nb)
+            if (st["trans"] and c.trans_masks == "depth_gap") or st["plausibility"]:
+                w_t, w_o = batch_transparency_masks(c, b, out, extent)
+                stats["mask_t"] = float(w_t.mean())
+                if st["trans"] and c.trans_masks == "depth_gap":
+                    parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
+                if st["plausibility"]:
+                    parts["plausibility"] = c.w_plausibility * plausibility(
+                        Dd, out["depth"], Dn, out["normal"], floats(w_o), extent)
+            if st["treg"]:
+                img = b.rgb.reshape(b.patches, p, p, 3)
+                edge = (np.abs(img[:, :-1, 1:] - img[:, :-1, :-1]).mean(-1)
+                        + np.abs(img[:, 1:, :-1] - img[:, :-1, :-1]).mean(-1))  # at the nb pixels, in order
+                grad_i = edge.reshape(-1) * 10.0
+                parts["treg"] = c.w_treg * transparency_regulariser(t, floats(grad_i), nb)
+        if st["trans"] and c.trans_masks == "gt":  # TSGS baseline: supervised by ground-truth glass masks
+            g = b.glass.reshape(b.patches, p, p) > 0.5
+            w_t, w_o = (erode(m).ravel().astype(np.float32) for m in (g, ~g))
+            stats["mask_t"] = float(w_t.mean())
+            parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
+        total = sum(parts.values())
+        dr.backward(total)
+        adjoints = {}
+        for k, v in leaves.items():
+            adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
+        for k, v in parts.items():
+            terms[k] = float(v[0]) if dr.width(v) else 0.0
+        terms["total"] = float(total[0])
+    # what each component contributes (evidence for components: auto)
+    w = out["weights"]
+    lum = lambda x: np.asarray(x).mean(0) if np.asarray(x).ndim == 2 else np.asarray(x)
+    img_e = max(float(lum(np.array(out["rgb"])).mean()), 1e-6)
+    stats["share_reflection"] = float(np.mean(np.array(w[1]) * lum(np.array(out["reflection"])))) / img_e
+    stats["share_transmission"] = float(np.mean(np.array(w[2]) * lum(np.array(out["transmission"])))) / img_e
+    return terms, adjoints, stats
+
+
+def batch_transparency_masks(c, b, out: dict, extent: float):
+    """L_trans masks of the batch (numpy, no gradient) on the p x p patches: (weight_transparent, weight_opaque)."""
+    Dc, Dd, _, _ = out["trans_direct"]
+    P, p = b.patches, b.patch
+    shape = (P, p, p)
+    dI = np.array(out["depth"]).reshape(shape)
+    dT = np.array(Dd).reshape(shape)
+    albedo = b.albedo_prior.mean(1).reshape(shape) if b.albedo_prior is not None else None
+    cI = np.array(out["interface"])
+    base = (cI.mean(0) if cI.ndim == 2 else cI).reshape(shape) if albedo is not None else None
+    n = np.array(out["normal"])
+    n = n.T if n.shape[0] == 3 else n
+    cos = -np.sum(n * b.direction, axis=1).reshape(shape)
+    cos = np.where(np.linalg.norm(n, axis=1).reshape(shape) > 0, cos, 1.0)
+    w_t, w_o = transparency_masks(dT, dI, c.tau_delta * extent, albedo, base, cos)
+    # weight M_t by how much the transmitted path improves the photometric fit
+    gt = b.rgb
+    cIm = cI.T if cI.shape[0] == 3 else cI
+    cT = np.array(Dc)
+    cT = cT.T if cT.shape[0] == 3 else cT
+    e_i = np.abs(cIm - gt).mean(1)
+    e_t = np.abs(cT - gt).mean(1)
+    improve = np.clip((e_i - e_t) / np.maximum(e_i, 1e-3), 0.0, 1.0).reshape(shape)
+    return (w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32)

@@ -39,7 +39,7 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
         if scene_props and key in scene_props:
             values[key] = scene_props[key]
     if args.iterations:
-        values["iterations"] = args.iterations
+        values["iterations"], values["epochs"] = args.iterations, 0.0
     if args.seed is not None:
         values["seed"] = args.seed
     values.update(_parse_set(args.set))
@@ -58,7 +58,7 @@ def main(argv=None) -> int:
     ap.add_argument("--preset", choices=["tiny", "quick", "bench"], help="size preset (default quick)")
     ap.add_argument("--variant", choices=["supplement", "release"], help="schedule (default supplement)")
     ap.add_argument("--config", type=Path, help="JSON of TrainConfig fields")
-    ap.add_argument("--iterations", type=int)
+    ap.add_argument("--iterations", type=int, help="a fixed iteration count instead of the preset's epochs budget")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a TrainConfig field")
     ap.add_argument("--no-eval", action="store_true", help="skip the test-view evaluation at the end")

@@ -38,7 +38,7 @@ def training_curves(history: list[dict], path=None):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from .train import LOSS_NAMES
+    from .config import LOSS_NAMES
 
     it = np.array([h["iteration"] for h in history])
     fig, ax = plt.subplots(1, 3, figsize=(13, 3.4))

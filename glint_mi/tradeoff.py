@@ -27,7 +27,8 @@ GRID = {
                    "all three": {"components": "all"}, "auto": {"components": "auto"}},
     "order": {"first order": {"max_order": 1, "components": "all"},
               "max_order 2": {"max_order": 2, "components": "all"}},
-    # rays per iteration stay the same; each ray then covers a 2 x 2 block (evaluation at full resolution)
+    # rays per iteration stay the same; each ray then covers a 2 x 2 block (evaluation at full resolution); with an
+    # epochs budget the half-resolution run gets a quarter of the iterations (the same rays per training pixel)
     "resolution": {"train 1/1 res": {}, "train 1/2 res": {"train_downsample": 2}},
 }
 # the components question on a room WITHOUT glass (same room, `python -m glint_mi.dataset make --no-glass`)
@@ -37,8 +38,12 @@ NO_GLASS = {"interface": {"components": "interface"}, "all three": {"components"
 def _overrides(cfg_base, ov: dict) -> dict:
     ov = dict(ov)
     out = {}
-    if "iterations_scale" in ov:
-        out["iterations"] = max(1, int(round(cfg_base.iterations * ov.pop("iterations_scale"))))
+    if "iterations_scale" in ov:  # scales the budget: epochs where the preset has them, else iterations
+        scale = ov.pop("iterations_scale")
+        if cfg_base.epochs > 0:
+            out["epochs"] = cfg_base.epochs * scale
+        else:
+            out["iterations"] = max(1, int(round(cfg_base.iterations * scale)))
     if "patches_scale" in ov:
         out["patches"] = max(1, int(round(cfg_base.patches * ov.pop("patches_scale"))))
     out.update(ov)

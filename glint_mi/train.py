@@ -25,17 +25,16 @@ import numpy as np
 
 from . import conventions as cv
 from . import losses as L
-from .batch import Batch, RayBank, patch_neighbours
-from .config import TrainConfig
+from .batch import RayBank
+from .config import LOSS_NAMES, TrainConfig
 from .data import Dataset, DatasetError, load_dataset
 from .examples import gaussian_scene_dict
 from .gaussians import GaussianSet
-from .render import aligned, floats
+from .render import floats
 from .scene import OptimScene, initial_sets, read_scene
 from .strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
-LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "normal", "consistency", "trans", "treg", "plausibility")
 
 
 class RunError(ValueError):
@@ -74,6 +73,7 @@ class Trainer:
             self._load_checkpoint()
         else:
             self._fresh()
+        cfg = self.cfg
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
                             glass_masks=cfg.trans_masks == "gt", downsample=cfg.train_downsample)
         self.report["priors"] = sorted(self.bank.has)
@@ -90,6 +90,7 @@ class Trainer:
             self.ds = load_dataset(self.scene_spec.dataset)
         if not self.ds.train_views:
             raise DatasetError(f"{self.ds.root}: no training views (check split.json).")
+        self._set_budget()
         sets, (lo, hi, extent), rep = initial_sets(self.scene_spec, self.ds, self.cfg, self.rng, self.log)
         roles = self.cfg.roles()
         self.sets = {r: s for r, s in sets.items() if r in roles}
@@ -103,6 +104,12 @@ class Trainer:
         self.cfg.save(self.run_dir / "config.json")
         atomic_write_text(self.run_dir / "run.json", json.dumps(
             {"scene": str(self.scene_spec.path), "dataset": str(self.ds.root)}, indent=1))
+
+    def _set_budget(self):
+        """epochs -> iterations from the training set's size (recomputed identically on resume)."""
+        k = self.cfg.train_downsample
+        self.train_pixels = sum((v.width // k) * (v.height // k) for v in self.ds.train_views)
+        self.cfg = self.cfg.with_budget(self.train_pixels)
 
     def _lrs(self):
         c = self.cfg
@@ -180,118 +187,10 @@ class Trainer:
         active = mi.Bool(True)
         out = self.integ.trace(ray, active, need=need, forward=fwd)
         dr.eval(out["_passes"])
-        terms, adjoints, stats = self._losses(b, out, st, ray, fwd)
+        terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent)
         self.integ.backward(ray, active, out, adjoints, forward=fwd)
         self._update(st)
         return {**terms, **stats}
-
-    def _leaf(self, x):
-        import drjit as dr
-
-        y = type(x)(dr.detach(x))
-        dr.enable_grad(y)
-        return y
-
-    def _losses(self, b: Batch, out: dict, st: dict, ray, fwd):
-        import drjit as dr
-        import mitsuba as mi
-
-        c = self.cfg
-        p = b.patch
-        nb = patch_neighbours(b.patches, p)
-        gt = mi.Color3f(*floats(b.rgb))
-        terms = {k: 0.0 for k in LOSS_NAMES}
-        stats = {}
-        with dr.resume_grad():
-            rgb = self._leaf(mi.Color3f(out["rgb"]))
-            depth, normal, t = self._leaf(out["depth"]), self._leaf(out["normal"]), self._leaf(out["transparency"])
-            leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
-            A = dr.detach(out["alpha"])
-            parts = {"l1": c.w_l1 * L.l1(rgb, gt), "dssim": c.w_dssim * L.dssim(rgb, gt, p)}
-            if st["consistency"]:
-                dist = depth / dr.dot(ray.d, fwd)
-                parts["consistency"] = c.w_consistency * L.depth_normal_consistency(
-                    ray.o, ray.d, dist, normal, A > 0.5, nb)
-            if st["depth"]:
-                prior = floats(b.depth_prior)
-                mask = (prior > 0) & (A > 0.5)
-                vid = mi.UInt32(aligned(b.view, np.uint32))
-                parts["depth"] = c.w_depth * L.depth_loss(depth, prior, mask, vid, len(self.bank.views))
-            if st["normal"]:
-                axes = [mi.Vector3f(*floats(b.axes[:, :, k])) for k in range(3)]
-                n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
-                prior = mi.Vector3f(*floats(b.normal_prior))
-                valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
-                parts["normal"] = c.w_normal * L.normal_loss(n_cv, prior, c.tau_n, valid)[0]
-            if "transmission" in st["traced"]:
-                Dc, Dd, Dn, DA = out["trans_direct"]
-                Dc, Dd, Dn, DA = self._leaf(mi.Color3f(Dc)), self._leaf(Dd), self._leaf(Dn), self._leaf(DA)
-                leaves["trans_direct"] = (Dc, Dd, Dn, DA)
-                if st["direct"]:
-                    parts["direct"] = c.w_direct * (c.w_l1 * L.l1(Dc, gt) + c.w_dssim * L.dssim(Dc, gt, p))
-                    if st["consistency"]:
-                        parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
-                            L.depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
-                                                       dr.detach(DA) > 0.5, nb)
-                if (st["trans"] and c.trans_masks == "depth_gap") or st["plausibility"]:
-                    w_t, w_o = self._trans_masks(b, out, nb)
-                    stats["mask_t"] = float(w_t.mean())
-                    if st["trans"] and c.trans_masks == "depth_gap":
-                        parts["trans"] = c.w_trans * (L.bce(t, 0.98, floats(w_t)) + L.bce(t, 0.02, floats(w_o)))
-                    if st["plausibility"]:
-                        parts["plausibility"] = c.w_plausibility * L.plausibility(
-                            Dd, out["depth"], Dn, out["normal"], floats(w_o), self.extent)
-                if st["treg"]:
-                    img = b.rgb.reshape(b.patches, p, p, 3)
-                    edge = (np.abs(img[:, :-1, 1:] - img[:, :-1, :-1]).mean(-1)
-                            + np.abs(img[:, 1:, :-1] - img[:, :-1, :-1]).mean(-1))  # at the nb pixels, in order
-                    grad_i = edge.reshape(-1) * 10.0
-                    parts["treg"] = c.w_treg * L.transparency_regulariser(t, floats(grad_i), nb)
-            if st["trans"] and c.trans_masks == "gt":  # TSGS baseline: supervised by ground-truth glass masks
-                g = b.glass.reshape(b.patches, p, p) > 0.5
-                w_t, w_o = (L.erode(m).ravel().astype(np.float32) for m in (g, ~g))
-                stats["mask_t"] = float(w_t.mean())
-                parts["trans"] = c.w_trans * (L.bce(t, 0.98, floats(w_t)) + L.bce(t, 0.02, floats(w_o)))
-            total = sum(parts.values())
-            dr.backward(total)
-            adjoints = {}
-            for k, v in leaves.items():
-                adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
-            for k, v in parts.items():
-                terms[k] = float(v[0]) if dr.width(v) else 0.0
-            terms["total"] = float(total[0])
-        # what each component contributes (evidence for components: auto)
-        w = out["weights"]
-        lum = lambda x: np.asarray(x).mean(0) if np.asarray(x).ndim == 2 else np.asarray(x)
-        img_e = max(float(lum(np.array(out["rgb"])).mean()), 1e-6)
-        stats["share_reflection"] = float(np.mean(np.array(w[1]) * lum(np.array(out["reflection"])))) / img_e
-        stats["share_transmission"] = float(np.mean(np.array(w[2]) * lum(np.array(out["transmission"])))) / img_e
-        return terms, adjoints, stats
-
-    def _trans_masks(self, b: Batch, out: dict, nb):
-        """L_trans masks of the batch (numpy, no gradient) on the p x p patches."""
-        Dc, Dd, _, _ = out["trans_direct"]
-        P, p = b.patches, b.patch
-        shape = (P, p, p)
-        dI = np.array(out["depth"]).reshape(shape)
-        dT = np.array(Dd).reshape(shape)
-        albedo = b.albedo_prior.mean(1).reshape(shape) if b.albedo_prior is not None else None
-        cI = np.array(out["interface"])
-        base = (cI.mean(0) if cI.ndim == 2 else cI).reshape(shape) if albedo is not None else None
-        n = np.array(out["normal"])
-        n = n.T if n.shape[0] == 3 else n
-        cos = -np.sum(n * b.direction, axis=1).reshape(shape)
-        cos = np.where(np.linalg.norm(n, axis=1).reshape(shape) > 0, cos, 1.0)
-        w_t, w_o = L.transparency_masks(dT, dI, self.cfg.tau_delta * self.extent, albedo, base, cos)
-        # weight M_t by how much the transmitted path improves the photometric fit
-        gt = b.rgb
-        cIm = cI.T if cI.shape[0] == 3 else cI
-        cT = np.array(Dc)
-        cT = cT.T if cT.shape[0] == 3 else cT
-        e_i = np.abs(cIm - gt).mean(1)
-        e_t = np.abs(cT - gt).mean(1)
-        improve = np.clip((e_i - e_t) / np.maximum(e_i, 1e-3), 0.0, 1.0).reshape(shape)
-        return (w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32)
 
     def _update(self, st):
         import drjit as dr
@@ -412,7 +311,8 @@ class Trainer:
                 self.elapsed = time.perf_counter() - start
                 bar.update(1)
                 if self.it % c.log_every == 0 or self.it == c.iterations:
-                    bar.set_postfix(loss=f"{rec['total']:.4f}", rays_s=f"{rec['rays_per_s']:.0f}",
+                    bar.set_postfix(epoch=f"{self.it * rays / self.train_pixels:.1f}", loss=f"{rec['total']:.4f}",
+                                    rays_s=f"{rec['rays_per_s']:.0f}",
                                     stage=st["name"], n=rec["gaussians"], refresh=False)
                 if self.it % c.checkpoint_every == 0 and self.it < c.iterations:
                     self.save_checkpoint()
@@ -473,6 +373,7 @@ class Trainer:
         self.scene_spec = read_scene(info["scene"]) if Path(info["scene"]).exists() else None
         if self.ds is None:
             self.ds = load_dataset(info["dataset"])
+        self._set_budget()
         z = dict(np.load(path, allow_pickle=False))
         self.it, self.elapsed = int(z["iteration"]), float(z["elapsed"])
         self.extent = float(z["extent"])

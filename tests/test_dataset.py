@@ -14,7 +14,8 @@ import mitsuba as mi
 import glint_mi
 from glint_mi.data import DatasetError, View, load_dataset
 from glint_mi.dataset.cameras import MI_TO_COLMAP, rotmat_to_qvec, qvec_to_rotmat
-from glint_mi.dataset.generate import Preset, make_scene, read_gt_exr
+from glint_mi.dataset.generate import Preset, make_scene
+from glint_mi.exr import read_gt_exr
 from glint_mi.dataset.room import _overlap, build_room
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -176,7 +177,7 @@ def test_loader_errors_name_file_and_fix(scene_dir, tmp_path):
 
 
 def test_nan_in_gt_exr_is_reported(scene_dir, tmp_path):
-    from glint_mi.dataset.generate import write_gt_exr
+    from glint_mi.exr import write_gt_exr
     ds = load_dataset(scene_dir)
     v = ds.views[1]
     gt = v.load_gt()

@@ -355,3 +355,35 @@ def test_transparency_iou_quick_scale(tmp_path):
 
     m = evaluate(tr.integ_for_eval(), tr.ds.test_views, write=False)["metrics"]
     assert m["t_iou"] > 0.1 and m["psnr"] > 22 and m["normal_mae"] < 20, m
+
+
+def test_epochs_budget_sets_iterations(room, tmp_path):
+    """epochs x training pixels / rays per iteration -> iterations, saved resolved, the same on resume (also when
+    the resuming caller passes the unresolved preset config), and an explicit iteration count clears epochs."""
+    import argparse
+    import math
+
+    from glint_mi.optimize import build_config
+    spec = read_scene(room.parent / "scene.xml")
+    cfg = tiny_cfg(epochs=3.0, patches=4)
+    px = sum(v.width * v.height for v in load_dataset(room).train_views)
+    want = math.ceil(3.0 * px / 256)
+    assert cfg.with_budget(px).iterations == want and cfg.iterations != want
+    tr = Trainer(tmp_path / "e", cfg, scene=spec, log=lambda *a: None)
+    assert tr.cfg.iterations == want and tr.strategy.cfg.iterations == want
+    assert TrainConfig.load(tmp_path / "e" / "config.json").iterations == want
+    tr.save_checkpoint()
+    again = Trainer(tmp_path / "e", cfg, resume=True, log=lambda *a: None)
+    assert again.cfg.iterations == want and again.strategy.cfg.iterations == want
+    # half-resolution training: a quarter of the pixels, so a quarter of the rays for the same epochs
+    half = Trainer(tmp_path / "h", tiny_cfg(epochs=3.0, patches=4, train_downsample=2), scene=spec,
+                   log=lambda *a: None)
+    assert half.cfg.iterations == math.ceil(3.0 * sum((v.width // 2) * (v.height // 2)
+                                                      for v in load_dataset(room).train_views) / 256)
+    args = argparse.Namespace(config=None, iterations=50, seed=None, set=["epochs=4"], preset="quick", variant=None)
+    assert build_config(args).epochs == 4.0  # --set wins over the flag's reset
+    args.set = []
+    c = build_config(args)
+    assert (c.iterations, c.epochs) == (50, 0.0) and c.with_budget(px).iterations == 50
+    with pytest.raises(ConfigError, match="epochs"):
+        TrainConfig.for_preset("tiny", epochs=-1)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import linear_to_srgb
+from ..exr import read_gt_exr, write_gt_exr
 from .cameras import Camera, trajectory, write_colmap_text, write_transforms_json
 from .room import RoomScene, build_room
 
@@ -128,29 +129,6 @@ def first_surface_buffers(scene, sensor) -> dict[str, np.ndarray]:
     out = {"Z": np.array(s["depth"]).reshape(h, w, 1), "N": np.array(s["normal"]).T.reshape(h, w, 3),
            "T": np.array(s["glass"]).reshape(h, w, 1), "hit": np.array(s["alpha"]).reshape(h, w, 1)}
     return out
-
-
-def write_gt_exr(path: Path, rgb: np.ndarray, buffers: dict) -> None:
-    """R G B Z N.X N.Y N.Z T as float32 channels (contiguous copies: OpenEXR scrambles strided arrays)."""
-    import OpenEXR
-
-    chans = {"R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2], "Z": buffers["Z"][..., 0],
-             "N.X": buffers["N"][..., 0], "N.Y": buffers["N"][..., 1], "N.Z": buffers["N"][..., 2],
-             "T": buffers["T"][..., 0]}
-    chans = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in chans.items()}
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    tmp = path.with_name(path.name + ".tmp.exr")
-    with OpenEXR.File(header, chans) as f:
-        f.write(str(tmp))
-    os.replace(tmp, path)
-
-
-def read_gt_exr(path: Path) -> dict[str, np.ndarray]:
-    import OpenEXR
-
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        ch = f.channels()
-        return {k: np.array(v.pixels) for k, v in ch.items()}
 
 
 def noise_psnr(a: np.ndarray, b: np.ndarray) -> float:
