@@ -24,7 +24,8 @@ import numpy as np
 from . import metrics as M
 from .methods import METHODS, TABLE_METHODS, config_for
 
-COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae_glass", "absrel_glass", "t_iou")
+COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae_glass", "absrel_glass", "t_iou",
+           "t_off_glass")
 
 
 def scenes_in(data: Path) -> list[Path]:

@@ -76,6 +76,7 @@ class TrainConfig:
     w_plausibility: float = 0.05
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
     tau_delta: float = 0.005             # L_trans depth gap, x scene extent
+    trans_min_alpha: float = 0.5         # L_trans: a depth is valid where its set's accumulated alpha reaches this
     # schedule, fractions of the run (paper iteration / 60k)
     warmup: float = 5 / 60               # interface only until here (supplement)
     transmission_from: float = 5 / 60    # release: 1k

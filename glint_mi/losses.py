@@ -68,16 +68,22 @@ def erode(mask: np.ndarray) -> np.ndarray:
 
 
 def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=None, cos_view=None,
-                       low_a: float = 0.05, high_a: float = 0.10, high_b: float = 0.25):
+                       low_a: float = 0.05, high_a: float = 0.10, high_b: float = 0.25, alpha_t=None, alpha_i=None,
+                       min_alpha: float = 0.5):
     """L_trans masks of one image (numpy, no gradient): returns (weight_transparent, weight_opaque), [H, W] float.
 
     ``depth_t``/``depth_i``: planar depth of the transmission set (straight from the camera) and of the interface
-    (0 = invalid). Delta z = D_T - D_I: "behind" if > tau_delta, "same" otherwise. With a diffuse-albedo prior
+    (0 = invalid). A depth is valid where it is > 0 and, when the accumulated alphas ``alpha_t``/``alpha_i`` are
+    given, where they reach ``min_alpha``: an expected depth is normalised by the alpha, so a faint layer (a
+    floater, or an interface that has become a translucent veil) has a depth but is no surface, and must not vote.
+    Delta z = D_T - D_I: "behind" if > tau_delta, "same" otherwise. With a diffuse-albedo prior
     (``albedo`` [H,W] mean RGB) and the interface base colour (``base`` [H,W]): transparent = LowA & HighB & valid &
     behind; opaque = HighA | (LowA & ~HighB) | same. Without: transparent = valid & behind, opaque = same.
     Both are eroded 3x3 and weighted by the view angle (1 up to 70 deg, 0 beyond 80 deg, linear between).
     """
     valid = (depth_t > 0) & (depth_i > 0)
+    if alpha_t is not None and alpha_i is not None:
+        valid &= (alpha_t >= min_alpha) & (alpha_i >= min_alpha)
     dz = depth_t - depth_i
     behind, same = valid & (dz > tau_delta), valid & (dz <= tau_delta)
     if albedo is not None and base is not None:
@@ -254,11 +260,12 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
 
 def batch_transparency_masks(c, b, out: dict, extent: float):
     """L_trans masks of the batch (numpy, no gradient) on the p x p patches: (weight_transparent, weight_opaque)."""
-    Dc, Dd, _, _ = out["trans_direct"]
+    _, Dd, _, DA = out["trans_direct"]
     P, p = b.patches, b.patch
     shape = (P, p, p)
     dI = np.array(out["depth"]).reshape(shape)
     dT = np.array(Dd).reshape(shape)
+    aI, aT = np.array(out["alpha"]).reshape(shape), np.array(DA).reshape(shape)
     albedo = b.albedo_prior.mean(1).reshape(shape) if b.albedo_prior is not None else None
     cI = np.array(out["interface"])
     base = (cI.mean(0) if cI.ndim == 2 else cI).reshape(shape) if albedo is not None else None
@@ -266,13 +273,14 @@ def batch_transparency_masks(c, b, out: dict, extent: float):
     n = n.T if n.shape[0] == 3 else n
     cos = -np.sum(n * b.direction, axis=1).reshape(shape)
     cos = np.where(np.linalg.norm(n, axis=1).reshape(shape) > 0, cos, 1.0)
-    w_t, w_o = transparency_masks(dT, dI, c.tau_delta * extent, albedo, base, cos)
-    # weight M_t by how much the transmitted path improves the photometric fit
-    gt = b.rgb
-    cIm = cI.T if cI.shape[0] == 3 else cI
-    cT = np.array(Dc)
-    cT = cT.T if cT.shape[0] == 3 else cT
-    e_i = np.abs(cIm - gt).mean(1)
-    e_t = np.abs(cT - gt).mean(1)
-    improve = np.clip((e_i - e_t) / np.maximum(e_i, 1e-3), 0.0, 1.0).reshape(shape)
+    w_t, w_o = transparency_masks(dT, dI, c.tau_delta * extent, albedo, base, cos, alpha_t=aT, alpha_i=aI,
+                                  min_alpha=c.trans_min_alpha)
+    # weight M_t by how much seeing through improves the photometric fit: the pixel at t = 1 (the colour transmitted
+    # from x_I) against the pixel at t = 0 (the interface's own colour), both with the current specular part
+    rows = lambda x: (lambda a: a.T if a.ndim == 2 and a.shape[0] == 3 else a)(np.array(x))
+    gt, ks = b.rgb, np.array(out["weights"][1])[:, None]
+    spec = ks * rows(out["reflection"])
+    e_0 = np.abs((1 - ks) * rows(out["interface"]) + spec - gt).mean(1)
+    e_1 = np.abs((1 - ks) * rows(out["transmission"]) + spec - gt).mean(1)
+    improve = np.clip((e_0 - e_1) / np.maximum(e_0, 1e-3), 0.0, 1.0).reshape(shape)
     return (w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32)

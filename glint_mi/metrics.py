@@ -10,9 +10,11 @@ import math
 
 import numpy as np
 
-METRICS = ("psnr", "ssim", "normal_mae", "normal_mae_glass", "absrel", "absrel_glass", "t_iou", "t_f1")
+METRICS = ("psnr", "ssim", "normal_mae", "normal_mae_glass", "absrel", "absrel_glass", "t_iou", "t_f1",
+           "t_off_glass", "t_on_glass")
 HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "normal_mae": False, "normal_mae_glass": False, "absrel": False,
-                    "absrel_glass": False, "t_iou": True, "t_f1": True, "fps": True, "train_s": False}
+                    "absrel_glass": False, "t_iou": True, "t_f1": True, "t_off_glass": False, "t_on_glass": True,
+                    "fps": True, "train_s": False}
 
 
 def psnr(pred: np.ndarray, gt: np.ndarray) -> float:
@@ -72,6 +74,11 @@ def view_metrics(pred: dict, gt: dict, image: np.ndarray) -> dict[str, float]:
                absrel=absrel(pred["depth"], gt["depth"], valid),
                absrel_glass=absrel(pred["depth"], gt["depth"], glass))
     out["t_iou"], out["t_f1"] = iou_f1(pred["transparency"], gt["glass"])
+    # mean transparency where the first surface is opaque (a 'veil' raises it) and where it is glass
+    t = pred["transparency"]
+    off = valid & ~glass
+    out["t_off_glass"] = float(t[off].mean()) if off.any() else float("nan")
+    out["t_on_glass"] = float(t[glass].mean()) if glass.any() else float("nan")
     return out
 
 

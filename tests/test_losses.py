@@ -95,3 +95,34 @@ def test_bce_pulls_towards_its_target():
     dr.backward(bce(t, 0.98, mi.Float([1.0, 1.0, 0.0])))
     g = np.array(dr.grad(t))
     assert g[0] < 0 and g[1] < 0 and g[2] == 0  # descending raises t towards 0.98 where weighted
+
+
+def test_transparency_masks_ignore_faint_layers():
+    """A depth is valid only where its set is a surface (accumulated alpha >= 0.5): a translucent veil in front of
+    the room (alpha 0.3) must not be read as glass with the room behind it, nor as an opaque 'same' surface."""
+    H, W = 12, 16
+    D_I, D_T = np.full((H, W), 1.0), np.full((H, W), 3.0)     # interface in front of what the transmission set sees
+    A_I, A_T = np.full((H, W), 0.3), np.ones((H, W))
+    A_I[:, 8:] = 0.95                                          # right half: a real surface (glass) in front
+    m_t, m_o = transparency_masks(D_T, D_I, tau_delta=0.005, alpha_t=A_T, alpha_i=A_I)
+    assert m_t[:, :8].max() == 0 and m_o[:, :8].max() == 0      # the veil votes for nothing
+    assert m_t[2:-1, 9:-1].min() == 1
+    # without alphas the veil would have been marked transparent (the old rule)
+    assert transparency_masks(D_T, D_I, tau_delta=0.005)[0][2:-1, 1:7].min() == 1
+
+
+def test_transparency_off_and_on_glass_metrics():
+    from glint_mi.metrics import view_metrics
+    H, W = 6, 8
+    glass = np.zeros((H, W))
+    glass[:, :2] = 1
+    depth = np.ones((H, W))
+    depth[0] = 0                                  # no surface: counted in neither
+    t = np.where(glass > 0, 0.9, 0.2)
+    t[0] = 1.0
+    img = np.zeros((H, W, 3))
+    n = np.zeros((H, W, 3))
+    n[..., 2] = 1
+    m = view_metrics({"rgb": img, "depth": depth, "normal": n, "transparency": t},
+                     {"depth": depth, "normal": n, "glass": glass}, img)
+    assert np.isclose(m["t_off_glass"], 0.2) and np.isclose(m["t_on_glass"], 0.9)
