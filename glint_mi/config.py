@@ -104,7 +104,8 @@ class TrainConfig:
     auto_contrib_min: float = 0.005      # prune a set whose share of the image energy stays below this
     # run
     checkpoint_every: int = 200
-    eval_every: int = 0                  # 0: only at the end
+    eval_every: int = 0                  # > 0: evaluate the test views every this many iterations and at the end
+    #                                      (convergence.csv in the run folder; evaluation time is not training time)
     log_every: int = 10
 
     # -------------------------------------------------------------- helpers

@@ -314,6 +314,11 @@ class Trainer:
                     bar.set_postfix(epoch=f"{self.it * rays / self.train_pixels:.1f}", loss=f"{rec['total']:.4f}",
                                     rays_s=f"{rec['rays_per_s']:.0f}",
                                     stage=st["name"], n=rec["gaussians"], refresh=False)
+                if c.eval_every > 0 and self.it % c.eval_every == 0 and self.it < c.iterations:
+                    t_eval = time.perf_counter()
+                    self.evaluate_now()
+                    start += time.perf_counter() - t_eval  # evaluation is not training time
+                    self.elapsed = time.perf_counter() - start
                 if self.it % c.checkpoint_every == 0 and self.it < c.iterations:
                     self.save_checkpoint()
         except KeyboardInterrupt:
@@ -334,8 +339,31 @@ class Trainer:
                      f"`python -m glint_mi.optimize --resume {self.run_dir}`")
             raise KeyboardInterrupt
         if self.it >= c.iterations:
+            if c.eval_every > 0:
+                self.evaluate_now()
             self.save_model()
         return {"iterations": self.it, "train_s": self.elapsed}
+
+    def evaluate_now(self) -> dict:
+        """Test-view metrics of the current model (no files but ``convergence.csv``), recorded against iteration,
+        epoch and training seconds: the convergence curve (``eval_every``)."""
+        from . import metrics as M
+        from .evaluate import evaluate
+
+        views = self.ds.test_views or self.ds.train_views
+        m = evaluate(self.integ_for_eval(), views, write=False)["metrics"]
+        row = {"iteration": self.it, "epoch": self.it * self.cfg.rays_per_iteration() / self.train_pixels,
+               "train_s": self.elapsed, "gaussians": sum(len(s) for s in self.active_sets().values()),
+               **{k: m.get(k, float("nan")) for k in M.METRICS}}
+        self.report.setdefault("convergence", [])
+        if not any(r["iteration"] == self.it for r in self.report["convergence"]):
+            self.report["convergence"].append(row)
+        buf = io.StringIO()
+        w = csv.DictWriter(buf, fieldnames=list(row))
+        w.writeheader()
+        w.writerows(self.report["convergence"])
+        atomic_write_text(self.run_dir / "convergence.csv", buf.getvalue())
+        return row
 
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""

@@ -387,3 +387,16 @@ def test_epochs_budget_sets_iterations(room, tmp_path):
     assert (c.iterations, c.epochs) == (50, 0.0) and c.with_budget(px).iterations == 50
     with pytest.raises(ConfigError, match="epochs"):
         TrainConfig.for_preset("tiny", epochs=-1)
+
+
+def test_eval_every_writes_a_convergence_curve(room, tmp_path):
+    import csv
+    tr = Trainer(tmp_path / "c", tiny_cfg(iterations=20, patches=4, eval_every=8), scene=read_scene(
+        room.parent / "scene.xml"), log=lambda *a: None)
+    tr.train(progress=False)
+    rows = list(csv.DictReader(open(tmp_path / "c" / "convergence.csv")))
+    assert [int(r["iteration"]) for r in rows] == [8, 16, 20]
+    secs = [float(r["train_s"]) for r in rows]
+    assert secs == sorted(secs) and secs[-1] <= tr.elapsed + 1e-6
+    assert all(np.isfinite(float(r["psnr"])) and 0 <= float(r["t_off_glass"]) <= 1 for r in rows)
+    assert np.isclose(float(rows[-1]["epoch"]), 20 * 256 / tr.train_pixels)
