@@ -47,6 +47,7 @@ class Batch:
     normal_prior: np.ndarray | None   # camera space, OpenCV axes
     albedo_prior: np.ndarray | None
     glass: np.ndarray | None            # ground-truth glass mask (TSGS baseline only)
+    depth_affine: np.ndarray | None     # [M,2] (w, q) of each ray's view: prior ~ w * metric depth + q (depth_align sfm)
     patches: int
     patch: int
 
@@ -95,6 +96,7 @@ class RayBank:
                     maps = [m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-12) for m in maps]
                 self.priors[kind] = np.concatenate([m.reshape(h * w, -1) for m, (h, w) in zip(maps, self.sizes)])
         self.priors.setdefault("depth", None)
+        self.depth_affine = None  # see align_depth_priors
         self.glass = None
         if glass_masks:
             gts = [v.load_gt() for v in fine]
@@ -103,6 +105,59 @@ class RayBank:
 
                 raise DatasetError(f"{root}: trans_masks = gt needs gt/<view>.exr for every training view.")
             self.glass = np.concatenate([block_mean(g["glass"], k).reshape(-1) for g in gts]).astype(np.float32)
+
+    def align_depth_priors(self, points: np.ndarray | None, min_points: int = 12, trials: int = 256,
+                           seed: int = 0) -> dict:
+        """Fit, once per view, the affine map prior ~ w * z + q from the metric SfM points the view sees (z their
+        planar depth, the prior read at their pixel): RANSAC on pairs (inlier band 5 % of the median prior), then
+        least squares on the inliers. Points hidden behind a surface, or seen through glass where the prior sees the
+        glass, are outliers. Views with fewer than ``min_points`` points or no fit with w > 0 keep the per-batch fit
+        (NaN here). Sets ``self.depth_affine`` [V,2]; returns a summary for the run report."""
+        V = len(self.views)
+        self.depth_affine = np.full((V, 2), np.nan)
+        prior = self.priors.get("depth")
+        if prior is None or points is None or len(points) == 0:
+            return {"aligned_views": 0, "views": V, "why": "no depth prior" if prior is None else "no SfM points"}
+        rng = np.random.default_rng(seed)
+        counts, inlier_share = [], []
+        for i, v in enumerate(self.views):
+            R = self.axes[i].astype(np.float64)
+            pc = (points - self.origins[i]) @ R  # OpenCV camera coordinates
+            z = pc[:, 2]
+            ok = z > 1e-6
+            u = v.K[0, 0] * pc[ok, 0] / z[ok] + v.K[0, 2]
+            w_ = v.K[1, 1] * pc[ok, 1] / z[ok] + v.K[1, 2]
+            col, row = np.floor(u).astype(np.int64), np.floor(w_).astype(np.int64)
+            inside = (col >= 0) & (col < v.width) & (row >= 0) & (row < v.height)
+            zz = z[ok][inside]
+            pp = prior[self.offsets[i] + row[inside] * v.width + col[inside], 0].astype(np.float64)
+            keep = pp > 0
+            zz, pp = zz[keep], pp[keep]
+            counts.append(len(zz))
+            if len(zz) < min_points:
+                continue
+            band = 0.05 * np.median(np.abs(pp))
+            best = None
+            for _ in range(trials):
+                a, b = rng.choice(len(zz), 2, replace=False)
+                if abs(zz[a] - zz[b]) < 1e-9:
+                    continue
+                w = (pp[a] - pp[b]) / (zz[a] - zz[b])
+                if not w > 0:
+                    continue
+                inl = np.abs(w * zz + (pp[a] - w * zz[a]) - pp) < band
+                if best is None or inl.sum() > best.sum():
+                    best = inl
+            if best is None or best.sum() < max(min_points // 2, 3):
+                continue
+            A = np.column_stack([zz[best], np.ones(best.sum())])
+            (w, q), *_ = np.linalg.lstsq(A, pp[best], rcond=None)
+            if w > 0:
+                self.depth_affine[i] = (w, q)
+                inlier_share.append(float(best.mean()))
+        done = int(np.isfinite(self.depth_affine[:, 0]).sum())
+        return {"aligned_views": done, "views": V, "points_per_view_median": float(np.median(counts)),
+                "inlier_share_median": float(np.median(inlier_share)) if inlier_share else float("nan")}
 
     @property
     def has(self) -> set[str]:
@@ -124,7 +179,8 @@ class RayBank:
         get = lambda k: None if self.priors.get(k) is None else self.priors[k][flat]
         return Batch(view, flat, self.origins[view], self.dirs[flat], self.axes[view], self.rgb[flat],
                      None if get("depth") is None else get("depth")[:, 0], get("normal"), get("albedo"),
-                     None if self.glass is None else self.glass[flat], patches, p)
+                     None if self.glass is None else self.glass[flat],
+                     None if self.depth_affine is None else self.depth_affine[view], patches, p)
 
 
 def patch_neighbours(patches: int, p: int):

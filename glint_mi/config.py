@@ -69,6 +69,8 @@ class TrainConfig:
     w_dssim: float = 0.4
     w_direct: float = 1.0                # photometric loss of the transmission set's direct image (x w_l1, w_dssim)
     w_depth: float = 0.1
+    depth_align: str = "batch"           # batch: the paper's per-image scale-shift fit in every batch (MonoSDF);
+    #                                      sfm: fitted once per view to the metric SfM points (anchors the depth)
     w_normal: float = 0.3
     w_consistency: float = 0.1
     w_trans: float = 0.01
@@ -136,6 +138,8 @@ class TrainConfig:
         except (OSError, json.JSONDecodeError) as e:
             raise ConfigError(f"{path}: cannot read the config ({e}); it must be a JSON object of TrainConfig fields.")
         base = cls.for_preset(values.get("preset", "quick"), values.get("variant", "supplement"))
+        if "iterations" in values and "epochs" not in values:  # saved before budgets in epochs: a fixed count
+            values = {**values, "epochs": 0.0}
         return cls.from_dict({**dataclasses.asdict(base), **values}, source=str(path))
 
     def to_dict(self) -> dict:
@@ -162,6 +166,7 @@ class TrainConfig:
         need(self.priors in ("all", "none"), "priors", "use all or none")
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
+        need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")
         comps = self.components.replace(" ", "")
         need(comps in ("auto", "all") or set(comps.split(",")) <= set(cv.ROLES), "components",
              f"use auto, all or a comma list of {cv.ROLES}")

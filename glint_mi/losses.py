@@ -39,6 +39,13 @@ def depth_loss(depth, prior, mask, view, n_views: int):
     return dr.sum(r) / dr.maximum(dr.count(mask), 1)
 
 
+def depth_loss_aligned(depth, prior, mask, w, q):
+    """The same loss with (w, q) given per ray (fitted once per view to the metric SfM points): the interface's
+    depth is then anchored in metres, not only up to a per-image scale and shift."""
+    r = dr.select(mask, dr.square(w * depth + q - prior), 0.0)
+    return dr.sum(r) / dr.maximum(dr.count(mask), 1)
+
+
 def normal_loss(normal, prior, tau_n: float = 0.3, valid=True):
     """Normal prior with the cosine mask [<n, n_prior> >= tau_n]: mean of |n - p|_1 + (1 - <n, p>) over the mask.
 
@@ -204,8 +211,18 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         if st["depth"]:
             prior = floats(b.depth_prior)
             mask = (prior > 0) & (A > 0.5)
-            vid = mi.UInt32(aligned(b.view, np.uint32))
-            parts["depth"] = c.w_depth * depth_loss(depth, prior, mask, vid, n_views)
+            if c.depth_align == "sfm" and b.depth_affine is not None:
+                fit = np.isfinite(b.depth_affine[:, 0])  # views without an SfM fit keep the per-batch fit
+                w_fix, q_fix = floats(np.where(fit, b.depth_affine[:, 0], 1.0)), floats(
+                    np.where(fit, b.depth_affine[:, 1], 0.0))
+                vid = mi.UInt32(aligned(np.where(fit, n_views, b.view), np.uint32))  # fitted views: a spare slot
+                w_b, q_b = depth_fit(depth, prior, mask & mi.Bool(aligned(~fit, bool)), vid, n_views + 1)
+                sel = mi.Bool(aligned(fit, bool))
+                parts["depth"] = c.w_depth * depth_loss_aligned(depth, prior, mask, dr.select(sel, w_fix, w_b),
+                                                                dr.select(sel, q_fix, q_b))
+            else:
+                vid = mi.UInt32(aligned(b.view, np.uint32))
+                parts["depth"] = c.w_depth * depth_loss(depth, prior, mask, vid, n_views)
         if st["normal"]:
             axes = [mi.Vector3f(*floats(b.axes[:, :, k])) for k in range(3)]
             n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))

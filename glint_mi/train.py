@@ -77,6 +77,10 @@ class Trainer:
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
                             glass_masks=cfg.trans_masks == "gt", downsample=cfg.train_downsample)
         self.report["priors"] = sorted(self.bank.has)
+        if cfg.depth_align == "sfm" and "depth" in self.bank.has:
+            self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
+            self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
+                     f"{len(self.bank.views)} views (the others keep the per-batch fit)")
         from .dataset.priors import priors_are_derived
 
         self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))

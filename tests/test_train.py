@@ -400,3 +400,46 @@ def test_eval_every_writes_a_convergence_curve(room, tmp_path):
     assert secs == sorted(secs) and secs[-1] <= tr.elapsed + 1e-6
     assert all(np.isfinite(float(r["psnr"])) and 0 <= float(r["t_off_glass"]) <= 1 for r in rows)
     assert np.isclose(float(rows[-1]["epoch"]), 20 * 256 / tr.train_pixels)
+
+
+def test_config_saved_before_epochs_keeps_its_iterations(tmp_path):
+    import json
+    p = tmp_path / "config.json"
+    p.write_text(json.dumps({"preset": "quick", "iterations": 123}))  # a run folder from before budgets in epochs
+    c = TrainConfig.load(p)
+    assert (c.iterations, c.epochs) == (123, 0.0) and c.with_budget(10 ** 6).iterations == 123
+
+
+def test_depth_prior_alignment_to_sfm_points(room, rng):
+    """align_depth_priors recovers each view's unknown prior scale (recorded in PRIORS.json) from metric points,
+    with a third of them hidden behind surfaces (outliers); the fitted (w, q) reach the batch."""
+    import json
+
+    from glint_mi.batch import RayBank, pixel_rays
+    ds = load_dataset(room)
+    bank = RayBank(ds.train_views, room)
+    pts = []
+    for v in ds.train_views:  # metric surface points from the ground-truth depth of random pixels
+        gt = v.load_gt()
+        ys, xs = np.nonzero(gt["depth"] > 0)
+        k = rng.choice(len(xs), 60, replace=False)
+        d = pixel_rays(v, np.stack([xs[k], ys[k]], -1))
+        fwd = (v.c2w[:3, :3] @ np.array([0, 0, 1.0]))
+        dist = gt["depth"][ys[k], xs[k]] / (d @ fwd)
+        dist[:20] *= 1.3  # occluded: behind the visible surface
+        pts.append(v.c2w[:3, 3] + d * dist[:, None])
+    rep = bank.align_depth_priors(np.concatenate(pts))
+    assert rep["aligned_views"] == len(ds.train_views)
+    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
+    for i, v in enumerate(bank.views):
+        np.testing.assert_allclose(bank.depth_affine[i, 0], rec[v.name]["depth_scale"], rtol=0.05)
+    b = bank.sample(rng, 4, 8)
+    np.testing.assert_array_equal(b.depth_affine, bank.depth_affine[b.view])
+    assert RayBank(ds.train_views, room).align_depth_priors(None)["aligned_views"] == 0
+    # the trainer: depth_align sfm fits every view from the dataset's points and trains with the fixed (w, q)
+    ds.points, ds.colors = np.concatenate(pts), np.full((len(np.concatenate(pts)), 3), 128, np.uint8)
+    tr = Trainer(room.parent / "align_run", tiny_cfg(iterations=3, patches=4, depth_align="sfm", components="interface"),
+                 scene=read_scene(room.parent / "scene.xml"), dataset=ds, log=lambda *a: None)
+    assert tr.report["depth_align"]["aligned_views"] == len(ds.train_views)
+    tr.train(progress=False)
+    assert all(np.isfinite(h["depth"]) and h["depth"] > 0 for h in tr.history)
