@@ -134,9 +134,12 @@ def main(argv=None) -> int:
     ap.add_argument("--preset", default="bench", choices=["tiny", "quick", "bench"])
     ap.add_argument("--variant", default="supplement", choices=["supplement", "release"])
     ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")
-    ap.add_argument("--iterations", type=int, help="override the preset's budget (epochs) with a fixed iteration count (same for every method)")
+    ap.add_argument("--iterations", type=int,
+                    help="override the preset's budget (epochs) with a fixed iteration count (same for every method)")
     ap.add_argument("--seeds", type=int, default=1,
                     help="train every method x scene with seeds 0..N-1; the table then gives mean and spread")
+    ap.add_argument("--set", action="append", metavar="FIELD=VALUE",
+                    help="a TrainConfig field for every method (e.g. eval_every=200 for convergence curves)")
     ap.add_argument("--out", type=Path, default=Path("out/benchmark"))
     args = ap.parse_args(argv)
     if args.seeds < 1:
@@ -156,7 +159,17 @@ def main(argv=None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    from .config import ConfigError
+    from .optimize import _parse_set
+
     extra = {"iterations": args.iterations, "epochs": 0.0} if args.iterations else {}
+    try:
+        extra.update(_parse_set(args.set))
+        for m in methods:
+            config_for(m, args.preset, args.variant, **extra)  # every override is valid before anything runs
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     from .evaluate import machine

@@ -26,7 +26,7 @@ def test_benchmark_tiny(tmp_path):
     make_scene(data / "scene_000", seed=1, preset=Preset.named("tiny", views=6, spp=16), sfm="none")
     out = tmp_path / "bench"
     cmd = [sys.executable, "-m", "glint_mi.benchmark", "--data", str(data), "--preset", "tiny", "--methods",
-           "2dgs,envgs", "--iterations", "12", "--out", str(out)]
+           "2dgs,envgs", "--iterations", "12", "--set", "eval_every=6", "--out", str(out)]
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     rows = list(csv.DictReader(open(out / "results.csv")))
@@ -43,6 +43,13 @@ def test_benchmark_tiny(tmp_path):
         for k, v in METHODS[method].overrides.items():
             assert cfg[k] == v, (method, k)
         assert set(json.loads((run / "report.json").read_text())["sizes"]) == sets
+    # --set reaches every method: convergence curves at 6 and 12 iterations
+    for method in ("2dgs", "envgs"):
+        conv = list(csv.DictReader(open(out / "runs" / "scene_000" / method / "convergence.csv")))
+        assert [int(c["iteration"]) for c in conv] == [6, 12]
+    bad = subprocess.run(cmd[:-2] + ["--set", "no_such_field=1", "--out", str(tmp_path / "x")], capture_output=True,
+                         text=True, cwd=ROOT, timeout=600)
+    assert bad.returncode == 2 and "no_such_field" in bad.stderr and not (tmp_path / "x" / "runs").exists()
     # finished runs are skipped on a rerun (resumable benchmark)
     mtime = (out / "runs" / "scene_000" / "envgs" / "metrics.json").stat().st_mtime
     r2 = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
