@@ -107,6 +107,8 @@ def configs(n: int, res) -> dict:
                                                      components="all"), key),
         "glint all three (all)": lambda: (glint_scene(three, res, components="all"), key),
         "glint all three (auto)": lambda: (glint_scene(three, res), key),
+        "glint all three (all), inside_origins off (Gaussians around origins unseen)": lambda: (
+            glint_scene(three, res, components="all", inside_origins=False), key),
         "glint all three, gradient=ad": lambda: (glint_scene(three, res, components="all", gradient="ad"), key),
         "no glass, auto (t = 0: transmission set never traced)": lambda: (
             glint_scene({"interface": noglass, "transmission": trans}, res), key),

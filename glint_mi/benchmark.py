@@ -29,7 +29,8 @@ COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae
 
 
 def scenes_in(data: Path) -> list[Path]:
-    found = sorted(p.parent for p in Path(data).glob("*/split.json"))
+    # a scene still being generated (<name>.partial) is not a scene yet
+    found = sorted(p.parent for p in Path(data).glob("*/split.json") if not p.parent.name.endswith(".partial"))
     if not found:
         raise FileNotFoundError(f"{data}: no generated scenes (folders with split.json); make them with "
                                 f"`python -m glint_mi.dataset make {data} --scenes 5 --preset bench` or pass "

@@ -69,8 +69,9 @@ class TrainConfig:
     w_dssim: float = 0.4
     w_direct: float = 1.0                # photometric loss of the transmission set's direct image (x w_l1, w_dssim)
     w_depth: float = 0.1
-    depth_align: str = "batch"           # batch: the paper's per-image scale-shift fit in every batch (MonoSDF);
-    #                                      sfm: fitted once per view to the metric SfM points (anchors the depth)
+    depth_align: str = "sfm"             # sfm: the prior's scale and shift fitted once per view to the metric SfM
+    #                                      points (anchors the depth; views without points fall back); batch: the
+    #                                      paper's per-image scale-shift fit in every batch (MonoSDF)
     w_normal: float = 0.3
     w_consistency: float = 0.1
     w_trans: float = 0.01

@@ -56,6 +56,9 @@ METHODS = {m.name: m for m in [
     Method("glint-no-normal", dict(w_normal=0.0), "GLINT without L_normal"),
     Method("glint-no-priors", dict(**NO_PRIORS), "GLINT without any geometric (or albedo) prior"),
     Method("glint-no-ltrans", dict(w_trans=0.0), "GLINT without L_trans"),
+    Method("glint-batch-depth", dict(depth_align="batch"),
+           "GLINT with the paper's per-batch scale-shift fit of the depth prior (glint_mi's default fits it once per "
+           "view to the SfM points)"),
 ]}
 TABLE_METHODS = ("3dgs", "2dgs", "pgsr", "envgs", "refgs", "tsgs", "glint")
 
