@@ -35,6 +35,24 @@ def rays(origins, directions):
     return mi.Ray3f(mi.Point3f(*[mi.Float(o[:, i]) for i in range(3)]), mi.Vector3f(*[mi.Float(d[:, i]) for i in range(3)]))
 
 
+def central_difference(params, key: str, i: int, value, rel_step: float = 1e-3) -> float:
+    """Central finite difference of ``value()`` (a float) with respect to entry ``i`` of ``params[key]``, step
+    ``rel_step * max(1, |x|)``; the parameter is restored afterwards."""
+    T = type(params[key])
+    base = np.array(params[key]).ravel().astype(np.float64)
+    h = rel_step * max(1.0, abs(base[i]))
+    vals = []
+    for s in (1, -1):
+        b = base.copy()
+        b[i] += s * h
+        params[key] = T(b.astype(np.float32))
+        params.update()
+        vals.append(value())
+    params[key] = T(base.astype(np.float32))
+    params.update()
+    return (vals[0] - vals[1]) / (2 * h)
+
+
 def to_np(x):
     return np.array(x)
 

@@ -11,7 +11,7 @@ import pytest
 import drjit as dr
 import mitsuba as mi
 
-from conftest import make_integrator, random_set, rays, to_np
+from conftest import central_difference, make_integrator, random_set, rays, to_np
 from glint_mi import examples
 from glint_mi.gaussians import GaussianDataError, GaussianSet
 from glint_mi.render import render_buffers
@@ -178,30 +178,21 @@ def test_gradients_match_finite_differences(rng, kernel):
     for key, idxs in CASES:
         if kernel == "ellipsoid" and key.endswith("kernel_scales"):
             idxs = [0, 1, 2]
-        T = type(params[key])
-        base = np.array(params[key]).ravel().astype(np.float64)
         dr.enable_grad(params[key])
         params.update()
         dr.backward(loss())
         grad = np.array(dr.grad(params[key])).ravel()
         dr.disable_grad(params[key])
+
+        def value():
+            with dr.suspend_grad():
+                return float(np.array(loss()).ravel()[0])
         for i in idxs:
-            h = 1e-3 * max(1.0, abs(base[i]))
-            vals = []
-            for s in (1, -1):
-                b = base.copy()
-                b[i] += s * h
-                params[key] = T(b.astype(np.float32))
-                params.update()
-                with dr.suspend_grad():
-                    vals.append(float(np.array(loss()).ravel()[0]))
-            fd = (vals[0] - vals[1]) / (2 * h)
+            fd = central_difference(params, key, i, value)
             checked += abs(fd) > 1e-3
             touched.add(key.split(".")[0]) if abs(fd) > 1e-3 else None
             if abs(grad[i] - fd) > max(0.02 * abs(fd), 2e-3):
                 failures.append(f"{key}[{i}]: AD {grad[i]:+.5f} FD {fd:+.5f}")
-        params[key] = T(base.astype(np.float32))
-        params.update()
     assert not failures, "\n".join(failures)
     assert checked >= 15 and touched == {"interface", "reflection", "transmission"}, \
         f"only {checked} non-zero derivatives in {touched}: the test scene does not exercise every set"
