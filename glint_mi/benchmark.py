@@ -191,6 +191,15 @@ def main(argv=None) -> int:
               f"preset {args.preset}, variant {args.variant}; machine: {machine()}."
               + (" Priors derived from ground truth (labelled)." if derived else "") + "\n")
     print(write_results(rows, args.out, header))
+    curves = {}
+    for f in sorted((args.out / "runs").glob("*/*/convergence.csv")):
+        with open(f) as fh:
+            curves[f"{f.parent.name} / {f.parent.parent.name}"] = list(csv.DictReader(fh))
+    if curves:
+        from .plots import convergence_figure
+
+        convergence_figure(curves, args.out / "convergence.png")
+        print(f"convergence curves of {len(curves)} run(s): {args.out / 'convergence.png'}")
     return 0
 
 

@@ -59,3 +59,35 @@ def training_curves(history: list[dict], path=None):
         fig.savefig(path, dpi=100)
         plt.close(fig)
     return fig
+
+
+def convergence_figure(curves: dict[str, list[dict]], path) -> None:
+    """Test-view metrics against training seconds, one line per run (``curves``: label -> rows of a run's
+    ``convergence.csv``); runs of the same method share a colour, scenes differ by marker."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [("psnr", "PSNR (dB)"), ("normal_mae", "normal MAE (deg)"), ("absrel", "depth AbsRel"),
+              ("t_iou", "transparency IoU"), ("t_off_glass", "mean t off glass")]
+    methods = sorted({label.split(" / ")[0] for label in curves})
+    scenes = sorted({label.split(" / ")[-1] for label in curves})
+    colour = {m: f"C{i}" for i, m in enumerate(methods)}
+    marker = {s: "os^vDx*+"[i % 8] for i, s in enumerate(scenes)}
+    fig, ax = plt.subplots(1, len(panels), figsize=(3.3 * len(panels), 3.0))
+    for label, rows in curves.items():
+        m, sc = label.split(" / ")[0], label.split(" / ")[-1]
+        x = [float(r["train_s"]) / 60 for r in rows]
+        for a, (key, title) in zip(ax, panels):
+            a.plot(x, [float(r[key]) for r in rows], color=colour[m], marker=marker[sc], ms=3, lw=1,
+                   label=label if a is ax[0] else None)
+    for a, (_, title) in zip(ax, panels):
+        a.set_title(title, fontsize=9)
+        a.set_xlabel("training minutes", fontsize=8)
+        a.tick_params(labelsize=7)
+    ax[0].legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+

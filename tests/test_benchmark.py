@@ -47,6 +47,7 @@ def test_benchmark_tiny(tmp_path):
     for method in ("2dgs", "envgs"):
         conv = list(csv.DictReader(open(out / "runs" / "scene_000" / method / "convergence.csv")))
         assert [int(c["iteration"]) for c in conv] == [6, 12]
+    assert (out / "convergence.png").stat().st_size > 1000
     bad = subprocess.run(cmd[:-2] + ["--set", "no_such_field=1", "--out", str(tmp_path / "x")], capture_output=True,
                          text=True, cwd=ROOT, timeout=600)
     assert bad.returncode == 2 and "no_such_field" in bad.stderr and not (tmp_path / "x" / "runs").exists()
