@@ -118,6 +118,8 @@ class TrainConfig:
             raise ConfigError(f"unknown preset '{preset}'; use one of {sorted(PRESETS)}.")
         if variant not in VARIANTS:
             raise ConfigError(f"unknown variant '{variant}'; use one of {sorted(VARIANTS)}.")
+        if "iterations" in overrides and "epochs" not in overrides:  # an explicit count is a fixed budget
+            overrides = {**overrides, "epochs": 0.0}
         values = {**PRESETS[preset], **VARIANTS[variant], "preset": preset, "variant": variant, **overrides}
         return cls.from_dict(values)
 

@@ -387,6 +387,8 @@ def test_epochs_budget_sets_iterations(room, tmp_path):
     assert (c.iterations, c.epochs) == (50, 0.0) and c.with_budget(px).iterations == 50
     with pytest.raises(ConfigError, match="epochs"):
         TrainConfig.for_preset("tiny", epochs=-1)
+    q = TrainConfig.for_preset("quick", iterations=77)  # the Python API follows the same rule (notebook 3)
+    assert (q.iterations, q.epochs) == (77, 0.0) and TrainConfig.for_preset("quick").epochs == 15.0
 
 
 def test_eval_every_writes_a_convergence_curve(room, tmp_path):
