@@ -43,7 +43,7 @@ class TrainConfig:
     components: str = "auto"             # auto | all | comma list of interface,transmission,reflection
     max_order: int = 1
     max_hits: int = 64                   # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget")
-    fresnel: bool = True                 # false: EnvGS's (1 - beta) c_I + beta c_R blend (baseline)
+    blend: str = "fresnel"               # fresnel (GLINT) | envgs: (1 - beta) c_I + beta c_R | alpha: plain compositing
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
     trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | gt (ground-truth glass masks; TSGS baseline)
     # initialisation (method section 1)
@@ -143,6 +143,9 @@ class TrainConfig:
         base = cls.for_preset(values.get("preset", "quick"), values.get("variant", "supplement"))
         if "iterations" in values and "epochs" not in values:  # saved before budgets in epochs: a fixed count
             values = {**values, "epochs": 0.0}
+        if "fresnel" in values and "blend" not in values:  # saved before the blend option: a boolean
+            fresnel = values.pop("fresnel")
+            values = {**values, "blend": "fresnel" if fresnel else "envgs"}
         return cls.from_dict({**dataclasses.asdict(base), **values}, source=str(path))
 
     def to_dict(self) -> dict:
@@ -170,6 +173,8 @@ class TrainConfig:
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
         need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")
+        need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "
+             "alpha compositing, the 3DGS-family baselines)")
         comps = self.components.replace(" ", "")
         need(comps in ("auto", "all") or set(comps.split(",")) <= set(cv.ROLES), "components",
              f"use auto, all or a comma list of {cv.ROLES}")

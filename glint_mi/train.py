@@ -129,7 +129,7 @@ class Trainer:
         # the integrator traces every enabled set for every ray ("all"): its per-ray "auto" skipping folds a skipped
         # weight into k_d, which zeroes the gradient that would let beta (or tau) grow from its initial value
         props = {"components": "all", "max_order": self.cfg.max_order,
-                 "max_hits": self.cfg.max_hits, "fresnel": self.cfg.fresnel,
+                 "max_hits": self.cfg.max_hits, "blend": self.cfg.blend,
                  "aovs": "depth,normal,transparency,interface,alpha,weights"}
         self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, **props))
         self.integ = self.scene.integrator()
@@ -463,7 +463,7 @@ class Trainer:
                f'    <integrator type="glint" id="integrator">\n'
                f'        <string name="dataset" value="{self.ds.root.resolve()}"/>\n'
                f'        <string name="components" value="all"/>\n'
-               f'        <boolean name="fresnel" value="{str(self.cfg.fresnel).lower()}"/>\n'
+               f'        <string name="blend" value="{self.cfg.blend}"/>\n'
                f'        <integer name="max_order" value="{self.cfg.max_order}"/>\n'
                f'        <integer name="max_hits" value="{self.cfg.max_hits}"/>\n{shapes}\n    </integrator>\n'
                f'{sensor_xml(cam, 1)}</scene>\n')

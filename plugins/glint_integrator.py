@@ -15,10 +15,14 @@ and the same transport as a first-order reference on mesh scenes with real glass
      transmission where k_t > transmit_min; the skipped weight goes to the diffuse term, so weights still sum to
      1); ``all``: trace every present set for every ray (exact first-order model); or a comma list of the sets to
      use, e.g. ``interface,transmission``.
- * - fresnel
-   - |bool|
-   - ``true`` (default): GLINT's Schlick weights. ``false``: EnvGS's blend k_s = beta, k_d = 1 - beta, k_t = 0 (the
-     ``envgs`` baseline).
+ * - blend
+   - |string|
+   - How the components are weighted. ``fresnel`` (default): GLINT's Schlick weights. ``envgs``: EnvGS's blend
+     k_s = beta, k_d = 1 - beta, k_t = 0. ``alpha``: plain front-to-back alpha compositing of the interface,
+     C = sum T_i alpha_i c_i (k_d = 1, no specular, no transparency), as 3DGS / 2DGS / PGSR / Ref-GS composite.
+     A set that is absent (switched off, or dropped by a run's ``components: auto``) gives its weight to the
+     diffuse term, so the image is never darkened by a missing component. The boolean ``fresnel`` of older
+     scenes is read as ``fresnel`` (true) or ``envgs`` (false).
  * - reflect_min, transmit_min
    - |float|
    - Per-ray thresholds of ``auto``. (Default: 0.05, just above F0 = 0.04, and 1e-3)
@@ -99,6 +103,7 @@ AOV_GROUPS = {
 }
 DEFAULT_AOVS = "depth,normal,transparency,interface,reflection,transmission,alpha"
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1.0 / 255.0, 0.99, 1e-4
+BLENDS = ("fresnel", "envgs", "alpha")
 
 
 class GaussianSetRef:
@@ -245,8 +250,10 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         self.inside_origins = bool(props.get("inside_origins", True))
         if not (0.0 <= self.alpha_min < self.alpha_max < 1.0 and 0.0 <= self.transmittance_min < 1.0):
             raise ValueError("glint: need 0 <= alpha_min < alpha_max < 1 and 0 <= transmittance_min < 1.")
-        # fresnel = false: EnvGS's blend C = (1 - beta) c_I + beta c_R (no Fresnel, no transmission), for baselines
-        self.fresnel = bool(props.get("fresnel", True))
+        legacy = "fresnel" if bool(props.get("fresnel", True)) else "envgs"
+        self.blend = str(props.get("blend", legacy))
+        if self.blend not in BLENDS:
+            raise ValueError(f"glint: 'blend' must be one of {', '.join(BLENDS)} (got '{self.blend}').")
         self.reflect_min = float(props.get("reflect_min", 0.05))
         self.transmit_min = float(props.get("transmit_min", 1e-3))
         comps = str(props.get("components", "auto")).replace(" ", "")
@@ -535,18 +542,26 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         has = I.A > 0
         n_hat = I.normal
         cos = dr.select(dr.squared_norm(n_hat) > 0, dr.maximum(0.0, dr.dot(-d, n_hat)), 1.0)
-        F = schlick(cos, self.f0)
-        ks = dr.clip(I.B + (1.0 - I.B) * F, self.f0, 1.0) if self.fresnel else dr.clip(I.B, 0.0, 1.0)
-        kd = (1.0 - ks) * (1.0 - I.Tau) if self.fresnel else 1.0 - ks
-        kt = (1.0 - ks) * I.Tau if self.fresnel else mi.Float(0.0)
+        if self.blend == "fresnel":
+            ks = dr.clip(I.B + (1.0 - I.B) * schlick(cos, self.f0), self.f0, 1.0)
+            kd, kt = (1.0 - ks) * (1.0 - I.Tau), (1.0 - ks) * I.Tau
+        elif self.blend == "envgs":
+            ks = dr.clip(I.B, 0.0, 1.0)
+            kd, kt = 1.0 - ks, mi.Float(0.0)
+        else:  # alpha: the interface alone, composited front to back
+            ks, kt, kd = mi.Float(0.0), mi.Float(0.0), mi.Float(1.0)
         ks, kt, kd = dr.select(has, ks, 0.0), dr.select(has, kt, 0.0), dr.select(has, kd, 1.0)
         refl, trans = self.active_set("reflection"), self.active_set("transmission")
+        # an absent set's weight goes to the diffuse term: C = (k_d + k_s) c_I + k_t c_T without reflections, etc.
+        if refl is None:
+            kd, ks = kd + ks, mi.Float(0.0)
+        if trans is None:
+            kd, kt = kd + kt, mi.Float(0.0)
         do_r = mi.Bool(dr.detach(active & has & (ks > (self.reflect_min if self.auto else 0.0)))) & (refl is not None)
         do_t = mi.Bool(dr.detach(active & has & (kt > (self.transmit_min if self.auto else 0.0)))) & (trans is not None)
         if self.auto:  # skipped weight goes to the diffuse term, keeping k_d + k_s + k_t = 1
-            kd = kd + dr.select(~do_r & (refl is not None), ks, 0.0) + dr.select(~do_t & (trans is not None), kt, 0.0)
-            ks = dr.select(do_r | (refl is None), ks, 0.0)
-            kt = dr.select(do_t | (trans is None), kt, 0.0)
+            kd = kd + dr.select(~do_r, ks, 0.0) + dr.select(~do_t, kt, 0.0)
+            ks, kt = dr.select(do_r, ks, 0.0), dr.select(do_t, kt, 0.0)
         return kd, ks, kt, do_r, do_t
 
     def _secondary(self, I: Composite, o, d):

@@ -18,7 +18,7 @@ def test_methods_are_configurations():
         cfg = config_for(name, "tiny")
         for k, v in m.overrides.items():
             assert getattr(cfg, k) == v, (name, k)
-    assert config_for("3dgs", "tiny").kernel == "ellipsoid" and config_for("envgs", "tiny").fresnel is False
+    assert config_for("3dgs", "tiny").kernel == "ellipsoid" and config_for("envgs", "tiny").blend == "envgs"
 
 
 def test_benchmark_tiny(tmp_path):
