@@ -21,15 +21,20 @@ def fresnel_weights_vs_angle(angles_deg, beta: float = 0.0, tau: float = 0.5, io
     xy = rng.uniform(-6, 6, (n, 2))
     slab = GaussianSet.from_activated(np.column_stack([xy, np.zeros(n)]), [0.4, 0.4, 0.01], opacities=1.0,
                                       colors=0.5, specular=beta, transparency=tau)
+    # the reflection and transmission sets must be present for their weights to exist (an absent set gives its weight
+    # to the diffuse term): one far Gaussian each
+    far = lambda z: GaussianSet.from_activated([[0.0, 0.0, z]], 0.5, opacities=0.5)
     integ = mi.load_dict({"type": "glint", "components": "all", "ior": ior, "alpha_max": 1 - 1e-7,
-                          "transmittance_min": 1e-9, "interface": make_shape(slab, role="interface")})
+                          "transmittance_min": 1e-9, "interface": make_shape(slab, role="interface"),
+                          "reflection": make_shape(far(-50.0), role="reflection"),
+                          "transmission": make_shape(far(50.0), role="transmission")})
     th = np.radians(np.asarray(angles_deg, float))
     d = np.column_stack([np.sin(th), np.zeros_like(th), np.cos(th)])  # towards +z, the slab faces -z
     o = -2.0 * d
     ray = mi.Ray3f(mi.Point3f(*[mi.Float(o[:, i]) for i in range(3)]), mi.Vector3f(*[mi.Float(d[:, i]) for i in range(3)]))
     out = integ.trace(ray, mi.Bool(True))
-    return {"angle_deg": np.asarray(angles_deg, float), "kd": np.array(out["kd"]), "ks": np.array(out["ks"]),
-            "kt": np.array(out["kt"]), "f0": integ.f0}
+    k = {w: np.broadcast_to(np.array(out[w]), th.shape).copy() for w in ("kd", "ks", "kt")}
+    return {"angle_deg": np.asarray(angles_deg, float), **k, "f0": integ.f0}
 
 
 def mesh_mode_vs_path(width=48, height=36, spp=64, seed=7) -> dict:
