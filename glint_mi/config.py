@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
-
-import numpy as np
 
 from . import conventions as cv
 
@@ -196,7 +195,7 @@ class TrainConfig:
         the schedule's fractions follow."""
         if self.epochs <= 0:
             return self
-        its = max(1, int(np.ceil(self.epochs * train_pixels / self.rays_per_iteration())))
+        its = max(1, int(math.ceil(self.epochs * train_pixels / self.rays_per_iteration())))
         return dataclasses.replace(self, iterations=its)
 
     def at(self, fraction: float) -> int:

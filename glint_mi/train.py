@@ -115,6 +115,11 @@ class Trainer:
         self.train_pixels = sum((v.width // k) * (v.height // k) for v in self.ds.train_views)
         self.cfg = self.cfg.with_budget(self.train_pixels)
 
+    @property
+    def epoch(self) -> float:
+        """Rays traced so far per training pixel."""
+        return self.it * self.cfg.rays_per_iteration() / self.train_pixels
+
     def _lrs(self):
         c = self.cfg
         lrs = {"means": c.lr_position * self.extent, "log_scales": c.lr_scale, "quats_wxyz": c.lr_rotation,
@@ -315,7 +320,7 @@ class Trainer:
                 self.elapsed = time.perf_counter() - start
                 bar.update(1)
                 if self.it % c.log_every == 0 or self.it == c.iterations:
-                    bar.set_postfix(epoch=f"{self.it * rays / self.train_pixels:.1f}", loss=f"{rec['total']:.4f}",
+                    bar.set_postfix(epoch=f"{self.epoch:.1f}", loss=f"{rec['total']:.4f}",
                                     rays_s=f"{rec['rays_per_s']:.0f}",
                                     stage=st["name"], n=rec["gaussians"], refresh=False)
                 if c.eval_every > 0 and self.it % c.eval_every == 0 and self.it < c.iterations:
@@ -356,7 +361,7 @@ class Trainer:
 
         views = self.ds.test_views or self.ds.train_views
         m = evaluate(self.integ_for_eval(), views, write=False)["metrics"]
-        row = {"iteration": self.it, "epoch": self.it * self.cfg.rays_per_iteration() / self.train_pixels,
+        row = {"iteration": self.it, "epoch": self.epoch,
                "train_s": self.elapsed, "gaussians": sum(len(s) for s in self.active_sets().values()),
                **{k: m.get(k, float("nan")) for k in M.METRICS}}
         self.report.setdefault("convergence", [])

@@ -392,15 +392,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
     # ------------------------------------------------------------- kernels
     def _eval_kernel(self, gs: GaussianSetRef, prim_index, o0, d, active):
         """Alpha, distance along the ray, facing normal and attributes of hit primitives (differentiable)."""
-        si = dr.zeros(mi.SurfaceInteraction3f)
-        si.prim_index = prim_index
         shape = gs.shape
-        e = shape.eval_attribute_x("ellipsoid", si, active)
-        center = mi.Point3f(e[0], e[1], e[2])
-        q = mi.Quaternion4f(e[6], e[7], e[8], e[9])
-        qn = dr.norm(q)
-        q = dr.select(qn > 1e-12, q / dr.maximum(qn, 1e-12), mi.Quaternion4f(0, 0, 0, 1))
-        rot = dr.quat_to_matrix(mi.Matrix3f, q)
+        si, e, center, rot = self._frame(gs, prim_index, active)
         s = mi.Vector3f(shape.eval_attribute_3("kernel_scales", si, active))
         opacity = shape.eval_attribute_1("opacities", si, active)
 
@@ -500,15 +493,22 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         return (d_o, d_d) if replay else acc
 
     @staticmethod
-    def _contains(gs: GaussianSetRef, prim_index, point, active):
-        """Whether the bounding shell of each hit primitive contains ``point`` (detached)."""
+    def _frame(gs: GaussianSetRef, prim_index, active):
+        """(interaction, packed ellipsoid record, centre, rotation) of the primitives ``prim_index`` of a set."""
         si = dr.zeros(mi.SurfaceInteraction3f)
         si.prim_index = prim_index
         e = gs.shape.eval_attribute_x("ellipsoid", si, active)
-        radius = gs.shape.eval_attribute_1("extent", si, active)
         q = mi.Quaternion4f(e[6], e[7], e[8], e[9])
-        q = q / dr.maximum(dr.norm(q), 1e-12)
-        local = dr.quat_to_matrix(mi.Matrix3f, q).T @ (point - mi.Point3f(e[0], e[1], e[2]))
+        qn = dr.norm(q)
+        q = dr.select(qn > 1e-12, q / dr.maximum(qn, 1e-12), mi.Quaternion4f(0, 0, 0, 1))
+        return si, e, mi.Point3f(e[0], e[1], e[2]), dr.quat_to_matrix(mi.Matrix3f, q)
+
+    @staticmethod
+    def _contains(gs: GaussianSetRef, prim_index, point, active):
+        """Whether the bounding shell of each hit primitive contains ``point`` (detached)."""
+        si, e, center, rot = GlintIntegrator._frame(gs, prim_index, active)
+        radius = gs.shape.eval_attribute_1("extent", si, active)
+        local = rot.T @ (point - center)
         shell = dr.maximum(mi.Vector3f(e[3], e[4], e[5]) * radius, 1e-30)
         return active & (dr.squared_norm(local / shell) < 1.0)
 

@@ -20,6 +20,14 @@ def random_set(rng, n, center=(0, 0, 0), spread=(1, 1, 0.2), scale=(0.1, 0.3), *
                                       rng.uniform(*scale, (n, 3)), rng.normal(size=(n, 4)), **kw)
 
 
+def camera(w=32, h=24):
+    """A small pinhole camera 4 m in front of the origin, looking at it (box filter, 1 spp)."""
+    return {"type": "perspective", "fov": 45,
+            "to_world": mi.ScalarTransform4f().look_at(origin=[0.2, 0.1, -4], target=[0, 0, 0], up=[0, 1, 0]),
+            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"}},
+            "sampler": {"type": "independent", "sample_count": 1}}
+
+
 def make_integrator(sets: dict, kernels=None, shape_kw=None, **props):
     kernels = kernels or {}
     desc = {"type": "glint", **props}

@@ -15,19 +15,12 @@ import pytest
 
 import mitsuba as mi
 
-from conftest import make_integrator, random_set, rays, to_np
+from conftest import camera, make_integrator, random_set, rays, to_np
 from glint_mi.config import TrainConfig
 from glint_mi.methods import config_for
 from glint_mi.render import render_buffers
 from glint_mi_plugins.glint_gaussians import make_shape
 from test_inside_origins import brute_force
-
-
-def _camera(w=40, h=30):
-    return {"type": "perspective", "fov": 45,
-            "to_world": mi.ScalarTransform4f().look_at(origin=[0.2, 0.1, -4], target=[0, 0, 0], up=[0, 1, 0]),
-            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"}},
-            "sampler": {"type": "independent", "sample_count": 1}}
 
 
 def _glassy_set(rng, n, **kw):
@@ -50,15 +43,15 @@ def test_3dgs_configuration_equals_volprim_rf_basic(rng):
              "alpha_min": 0.0, "alpha_max": 0.9999, "transmittance_min": 0.01,
              "interface": make_shape(g, cfg.kernel, extent=3.0, min_shell_ratio=0.0)}
     ref = {"type": "volprim_rf_basic", "srgb_primitives": False, "max_depth": 100000}
-    a = render_buffers(mi.load_dict({"type": "scene", "integrator": glint, "sensor": _camera()}))
-    r = np.array(mi.render(mi.load_dict({"type": "scene", "integrator": ref, "sensor": _camera(),
+    a = render_buffers(mi.load_dict({"type": "scene", "integrator": glint, "sensor": camera(40, 30)}))
+    r = np.array(mi.render(mi.load_dict({"type": "scene", "integrator": ref, "sensor": camera(40, 30),
                                          "g": make_shape(g, cfg.kernel, extent=3.0, min_shell_ratio=0.0)})))[..., :3]
     assert a["alpha"].mean() > 0.3, "test scene should cover the image"
     err = np.abs(a["rgb"] - r).max(-1)
     assert np.mean(err < 1e-4) > 0.95 and np.abs(a["rgb"] - r).mean() < 2e-3, f"mean abs {np.abs(a['rgb'] - r).mean()}"
     # GLINT with the interface alone (components: auto dropped both sets on a room without glass): the missing sets'
     # weights go to the diffuse term, so F0 and the specular / transparency attributes do not darken it either
-    fres = render_buffers(mi.load_dict({"type": "scene", "sensor": _camera(),
+    fres = render_buffers(mi.load_dict({"type": "scene", "sensor": camera(40, 30),
                                         "integrator": {**glint, "blend": "fresnel"}}))
     np.testing.assert_allclose(fres["rgb"], a["rgb"], atol=1e-6)
 

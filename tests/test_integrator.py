@@ -11,18 +11,11 @@ import pytest
 import drjit as dr
 import mitsuba as mi
 
-from conftest import central_difference, make_integrator, random_set, rays, to_np
+from conftest import camera, central_difference, make_integrator, random_set, rays, to_np
 from glint_mi import examples
 from glint_mi.gaussians import GaussianDataError, GaussianSet
 from glint_mi.render import render_buffers
 from glint_mi_plugins.glint_gaussians import make_shape
-
-
-def _camera(w=32, h=24):
-    return {"type": "perspective", "fov": 45,
-            "to_world": mi.ScalarTransform4f().look_at(origin=[0.2, 0.1, -4], target=[0, 0, 0], up=[0, 1, 0]),
-            "film": {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"}},
-            "sampler": {"type": "independent", "sample_count": 1}}
 
 
 def test_interface_matches_volprim_rf_basic(rng):
@@ -30,8 +23,8 @@ def test_interface_matches_volprim_rf_basic(rng):
     glint = {"type": "glint", "components": "interface", "aovs": "interface,alpha", "alpha_min": 0.0,
              "alpha_max": 0.9999, "transmittance_min": 0.01, "interface": make_shape(g, "ellipsoid", extent=3.0, min_shell_ratio=0.0)}
     ref = {"type": "volprim_rf_basic", "srgb_primitives": False, "max_depth": 100000}
-    a = render_buffers(mi.load_dict({"type": "scene", "integrator": glint, "sensor": _camera()}))
-    r = np.array(mi.render(mi.load_dict({"type": "scene", "integrator": ref, "sensor": _camera(),
+    a = render_buffers(mi.load_dict({"type": "scene", "integrator": glint, "sensor": camera()}))
+    r = np.array(mi.render(mi.load_dict({"type": "scene", "integrator": ref, "sensor": camera(),
                                          "g": make_shape(g, "ellipsoid", extent=3.0, min_shell_ratio=0.0)})))
     assert a["alpha"].mean() > 0.3, "test scene should cover the image"
     # volprim advances by a fixed 1e-4 after each hit and so drops Gaussians entered within 1e-4 of the previous
@@ -112,7 +105,7 @@ def test_energy_weights_sum_to_one(rng, components):
 def test_planar_depth_of_a_plane(rng):
     """An opaque wall at z = 1 seen by a camera at z = -4 has planar depth 5 everywhere (not ray distance)."""
     wall = _slab(rng, 1.0, n=600, specular=0.0, transparency=0.0)
-    scene = mi.load_dict({"type": "scene", "sensor": _camera(24, 16),
+    scene = mi.load_dict({"type": "scene", "sensor": camera(24, 16),
                           "integrator": {"type": "glint", "alpha_max": 1 - 1e-6, "interface": make_shape(wall)}})
     b = render_buffers(scene)
     cam_z = -4 * np.cos(np.arctan2(0.2, 4))  # camera looks at the origin from (0.2, 0.1, -4)
