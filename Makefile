@@ -25,6 +25,7 @@ test-slow: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_integrator.py
+	$(PY) benchmarks/profile_step.py
 
 # Optional: Blender Cycles for the cross-check, in its own venv (bpy 5.0.1 pins numpy<2, ~1 GB).
 cycles-env: .venv-cycles/.installed

@@ -161,11 +161,11 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     from .config import ConfigError
-    from .optimize import _parse_set
+    from .optimize import parse_sets
 
     extra = {"iterations": args.iterations, "epochs": 0.0} if args.iterations else {}
     try:
-        extra.update(_parse_set(args.set))
+        extra.update(parse_sets(args.set))
         for m in methods:
             config_for(m, args.preset, args.variant, **extra)  # every override is valid before anything runs
     except ConfigError as e:

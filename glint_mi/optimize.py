@@ -16,7 +16,7 @@ from pathlib import Path
 from .config import ConfigError, TrainConfig
 
 
-def _parse_set(items) -> dict:
+def parse_sets(items) -> dict:
     out = {}
     for it in items or []:
         if "=" not in it:
@@ -42,7 +42,7 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
         values["iterations"], values["epochs"] = args.iterations, 0.0
     if args.seed is not None:
         values["seed"] = args.seed
-    values.update(_parse_set(args.set))
+    values.update(parse_sets(args.set))
     preset = args.preset or values.pop("preset", None) or "quick"
     variant = args.variant or values.pop("variant", None) or "supplement"
     values.pop("preset", None), values.pop("variant", None)

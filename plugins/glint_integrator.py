@@ -43,6 +43,11 @@ and the same transport as a first-order reference on mesh scenes with real glass
  * - max_hits
    - |int|
    - Hit budget per ray and set. (Default: 256)
+ * - stored_hits_mb
+   - |float|
+   - mi.render's backward: the forward stores each pass's hit list (rays x max_hits x 4 bytes per pass) and the
+     replay walks it instead of re-running the BVH queries - exact, and about half the time of a gradient - when
+     the lists of all passes fit in this many MiB; otherwise the replay re-traces. (Default: 1024)
  * - alpha_min, alpha_max, transmittance_min
    - |float|
    - Compositing cut-offs: skip alpha below alpha_min, clamp alpha to alpha_max, stop once the transmittance falls
@@ -244,6 +249,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         if self.max_order not in (1, 2):
             raise ValueError(f"glint: 'max_order' must be 1 or 2 (got {self.max_order}).")
         self.max_hits = int(props.get("max_hits", 256))
+        self.stored_hits_mb = float(props.get("stored_hits_mb", 1024.0))
         self.alpha_min = float(props.get("alpha_min", ALPHA_MIN))
         self.alpha_max = float(props.get("alpha_max", ALPHA_MAX))
         self.transmittance_min = float(props.get("transmittance_min", T_MIN))
@@ -369,7 +375,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 dL, daovs = dr.grad(L), dr.grad(aovs)
             film.clear()
             ray = mi.Ray3f(dr.detach(ray))
-            out = self.trace(ray, mi.Bool(True), need=set(self.aov_groups))
+            record = dr.width(ray) * self.max_hits * 4 * 5 <= self.stored_hits_mb * 2 ** 20
+            out = self.trace(ray, mi.Bool(True), need=set(self.aov_groups), record=record)
             adjoints, k = {"rgb": dL}, 0
             for g in self.aov_groups:
                 n = len(AOV_GROUPS[g])
@@ -436,9 +443,9 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         return (alpha, dr.select(ok, t, 0.0), dr.select(ok, n, zero3), dr.select(ok, c, mi.Color3f(0.0)),
                 dr.select(ok, beta, 0.0), dr.select(ok, tau, 0.0))
 
-    @dr.syntax
     def march(self, gs: GaussianSetRef, o0, d, active, ad: bool = False, total: Composite = None,
-              adjoint: Composite = None, ray_grad: bool = False, weight=None):
+              adjoint: Composite = None, ray_grad: bool = False, weight=None, budget=None, record: bool = False,
+              hit_list=None, info: dict | None = None):
         """Front-to-back alpha compositing of one set along rays (o0, d).
 
         ``weight`` (per ray, primal) is how much of this pass reaches the pixel: the pass stops once
@@ -449,7 +456,34 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         Replay (``adjoint`` given, ``total`` = the forward Composite): re-traces the same hits and back-propagates the
         adjoint of the totals into the set's parameters hit by hit, in constant memory. Returns the adjoints of
         the ray origin and direction (zero unless ``ray_grad``).
+
+        Stored hit lists (exact, a speed-up of the replay): a forward with ``record`` also writes the Gaussians it
+        composited, per ray in order, into ``info["list"]`` = (indices [rays x max_hits], count [rays]); a replay
+        given that ``hit_list`` walks the list instead of re-running the BVH queries (same hits, same order, same
+        arithmetic). Traversal is most of a training step (benchmarks/profile_step.py), the replay half of it.
+
+        Profiling (benchmarks/profile_step.py): a pass given an ``info`` dict leaves its per-ray hit count there
+        (``info["hits"]``; never on ``self``, which is loop state of Dr.Jit's symbolic loops);
+        ``budget`` (per-ray hit counts) makes the pass a traversal only: the same BVH queries and stepping, stopped
+        after ``budget`` hits, with no kernel evaluated (returns an empty Composite).
         """
+        if adjoint is not None and hit_list is not None:
+            return self._replay_list(gs, o0, d, active, total, adjoint, ray_grad, hit_list)
+        if record:
+            n_rays = max(dr.width(active), dr.width(o0), dr.width(d))
+            slot = dr.arange(mi.UInt32, n_rays) * self.max_hits
+            listed = dr.zeros(mi.UInt32, n_rays * self.max_hits)
+        else:  # a scatter under a literal-false mask: Dr.Jit drops it
+            slot, listed = mi.UInt32(0), dr.zeros(mi.UInt32, 1)
+        acc, hits, count = self._march_bvh(gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed,
+                                           slot, mi.Bool(record))
+        if info is not None:
+            info["hits"] = hits
+            info["list"] = (listed, count) if record else None
+        return acc
+
+    @dr.syntax
+    def _march_bvh(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot, record):
         replay = adjoint is not None
         t_stop = mi.Float(self.transmittance_min)
         if weight is not None:
@@ -464,9 +498,11 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         d_o, d_d = mi.Vector3f(0.0), mi.Vector3f(0.0)
         hits = mi.UInt32(0)
         last0, last1 = mi.UInt32(0xFFFFFFFF), mi.UInt32(0xFFFFFFFF)
+        count = mi.UInt32(0)
         step = mi.Float(1.0)
         active = mi.Bool(active)
-        while dr.hint(active, mode="evaluated" if ad else "symbolic", label=f"glint {gs.role}"):
+        while dr.hint(active, mode="evaluated" if ad else "symbolic", label=f"glint {gs.role}",
+                      exclude=[listed, slot, record]):  # read-only or scatter targets, not loop state
             pi = gs.scene.ray_intersect_preliminary(mi.Ray3f(o, dd), coherent=False, active=active)
             hit = active & pi.is_valid()
             p = o + dd * pi.t
@@ -480,17 +516,40 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 behind = new & (dr.dot(p - origin, dd) < 0)
                 relevant = ~behind | self._contains(gs, pi.prim_index, origin, behind)
             fresh = new & relevant
-            acc, alpha, g_o, g_d = self._hit(gs, pi.prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad)
-            d_o += g_o
-            d_d += g_d
-            T *= 1.0 - alpha
+            dr.scatter(listed, pi.prim_index, slot + count, fresh & record)
+            count = count + mi.UInt32(dr.select(fresh, 1, 0))
+            if budget is None:
+                acc, alpha, g_o, g_d = self._hit(gs, pi.prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad)
+                d_o += g_o
+                d_d += g_d
+                T *= 1.0 - alpha
             o = dr.select(hit, p + dd * (_ray_epsilon(p) * step), o)
             step = dr.select(hit & ~new, step * 4.0, 1.0)
             last1 = dr.select(new, last0, last1)
             last0 = dr.select(new, pi.prim_index, last0)
             hits += mi.UInt32(dr.select(relevant, 1, 0))
-            active = hit & (T > t_stop) & (hits < self.max_hits)
-        return (d_o, d_d) if replay else acc
+            active = hit & (T > t_stop) & (hits < (self.max_hits if budget is None else budget))
+        return ((d_o, d_d) if replay else acc), hits, count
+
+    @dr.syntax
+    def _replay_list(self, gs: GaussianSetRef, o0, d, active, total, adjoint, ray_grad, hit_list):
+        """The replay of :meth:`march` over a stored hit list (no BVH query); returns the ray adjoints."""
+        listed, count = hit_list
+        slot = dr.arange(mi.UInt32, dr.width(count)) * self.max_hits
+        T = mi.Float(1.0)
+        acc = Composite()
+        d_o, d_d = mi.Vector3f(0.0), mi.Vector3f(0.0)
+        k = mi.UInt32(0)
+        active = mi.Bool(active) & (count > 0)
+        while dr.hint(active, mode="symbolic", label=f"glint {gs.role} list"):
+            prim = dr.gather(mi.UInt32, listed, slot + k, active)
+            acc, alpha, g_o, g_d = self._hit(gs, prim, o0, d, active, T, acc, total, adjoint, ray_grad)
+            d_o += g_o
+            d_d += g_d
+            T *= 1.0 - alpha
+            k += 1
+            active &= k < count
+        return d_o, d_d
 
     @staticmethod
     def _frame(gs: GaussianSetRef, prim_index, active):
@@ -585,32 +644,52 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 "reflection": R.C, "transmission": cT, "alpha": I.A, "weights": (kd, ks, kt),
                 "trans_direct": (D.C, D.depth * z, D.normal, D.A)}
 
-    def trace(self, ray: mi.Ray3f, active, ad: bool = False, need=frozenset(), forward=None) -> dict:
+    def trace(self, ray: mi.Ray3f, active, ad: bool = False, need=frozenset(), forward=None,
+              record: bool = False) -> dict:
         """All buffers of the GLINT image model for a batch of rays (Dr.Jit arrays; plain AD when ``ad``).
 
         Returns ``rgb`` (Spectrum), the AOV groups of AOV_GROUPS (``trans_direct`` only if in ``need``, else zeros),
         ``kd ks kt``, ``distance`` (expected distance along the ray) and ``_passes``, the per-set composites that
-        :meth:`backward` replays.
+        :meth:`backward` replays; with ``record``, also ``_lists``, each pass's stored hit list (see :meth:`march`),
+        which the replay then walks instead of re-running the BVH queries (exact; memory rays x max_hits x 4 bytes
+        per pass, so meant for training batches, not full-image renders).
         """
         forward = self._forward if forward is None else forward
         with dr.suspend_grad(when=not ad):  # a primal trace never records AD edges through its loops
             o, d = ray.o, ray.d
             active = mi.Bool(active)
             refl, trans, intf = self.active_set("reflection"), self.active_set("transmission"), self.active_set("interface")
-            I = self.march(intf, o, d, active, ad) if intf else Composite()
+            lists = []
+
+            def march(gs, *args, **kw):
+                if not gs:
+                    lists.append(None)
+                    return Composite()
+                info = {}
+                acc = self.march(gs, *args, ad=ad, record=record, info=info, **kw)
+                lists.append(info["list"])
+                if record:  # the loop's scatters run when it is evaluated: evaluate its totals in the same kernel
+                    dr.eval(acc, info["list"])
+                return acc
+
+            I = march(intf, o, d, active)
             weights = self._weights(I, d, active)
             x_i, d_r = self._secondary(I, o, d)
             kd, ks, kt, do_r, do_t = weights
-            R = self.march(refl, x_i, d_r, do_r, ad, weight=ks) if refl else Composite()
-            Tr = self.march(trans, x_i, d, do_t, ad, weight=kt) if trans else Composite()
+            R = march(refl, x_i, d_r, do_r, weight=ks)
+            Tr = march(trans, x_i, d, do_t, weight=kt)
             order2 = self.max_order == 2 and refl is not None and trans is not None
             R2 = Composite()
             if order2:
                 x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, do_t)
-                R2 = self.march(refl, x_t, d_r2, do_r2, ad, weight=kt * Tr.B)
-            D = self.march(trans, o, d, active, ad) if (trans and "trans_direct" in need) else Composite()
+                R2 = march(refl, x_t, d_r2, do_r2, weight=kt * Tr.B)
+            else:
+                lists.append(None)
+            D = march(trans if "trans_direct" in need else None, o, d, active)
             out = self._combine(I, R, Tr, R2, D, weights, d, forward, order2)
             out["_passes"] = (I, R, Tr, R2, D)
+            if record:
+                out["_lists"] = tuple(lists)
             return out
 
     def backward(self, ray: mi.Ray3f, active, out: dict, adjoints: dict, forward=None) -> None:
@@ -624,6 +703,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         o, d = mi.Point3f(dr.detach(ray.o)), mi.Vector3f(dr.detach(ray.d))
         active = mi.Bool(active)
         I, R, Tr, R2, D = out["_passes"]
+        lI, lR, lTr, lR2, lD = out.get("_lists", (None,) * 5)
         dr.eval(I, R, Tr, R2, D)  # one kernel for all totals (else each field would re-run its pass when detached)
         refl, trans, intf = self.active_set("reflection"), self.active_set("transmission"), self.active_set("interface")
         order2 = self.max_order == 2 and refl is not None and trans is not None
@@ -644,7 +724,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         if order2:
             x_t, d_r2, do_r2 = self._second_order(x_i, Tr, d, do_t)
             g_xt, g_dr2 = self.march(refl, x_t, d_r2, do_r2, total=R2, adjoint=gR2, ray_grad=True,
-                                     weight=kt * Tr.B)
+                                     weight=kt * Tr.B, hit_list=lR2)
             with dr.resume_grad():
                 x_il, Trl = mi.Point3f(x_i), Tr.leaf()
                 dr.enable_grad(x_il)
@@ -655,11 +735,12 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         # 3. transmission and reflection replays; their rays' origin/direction adjoints
         if trans:
             g_o, _ = self.march(trans, x_i, d, do_t, total=Tr, adjoint=gTr, ray_grad=not self.detach_depth,
-                                weight=kt)
+                                weight=kt, hit_list=lTr)
             g_xi += g_o
         g_dr = mi.Vector3f(0.0)
         if refl:
-            g_o, g_dr = self.march(refl, x_i, d_r, do_r, total=R, adjoint=gR, ray_grad=True, weight=ks)
+            g_o, g_dr = self.march(refl, x_i, d_r, do_r, total=R, adjoint=gR, ray_grad=True, weight=ks,
+                                   hit_list=lR)
             g_xi += g_o
         # 4. secondary rays -> interface totals (normal through the mirror direction, depth through x_I)
         with dr.resume_grad():
@@ -669,9 +750,9 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             gI = gI + Il.grad()
         # 5. the camera-ray passes
         if intf:
-            self.march(intf, o, d, active, total=I, adjoint=gI)
+            self.march(intf, o, d, active, total=I, adjoint=gI, hit_list=lI)
         if trans and "trans_direct" in adjoints:
-            self.march(trans, o, d, active, total=D, adjoint=gD)
+            self.march(trans, o, d, active, total=D, adjoint=gD, hit_list=lD)
 
     # ----------------------------------------------------------- mesh mode
     def _path_tracer(self):

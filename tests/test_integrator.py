@@ -222,10 +222,17 @@ def test_replay_backward_equals_plain_ad(rng, kernel, detach):
     out = integ.trace(r, mi.Bool(True), need={"trans_direct"}, forward=fwd)
     integ.backward(r, mi.Bool(True), out, adj, forward=fwd)
     g_rp = grads()
+    # the replay over the forward's stored hit lists (no BVH query) is the same computation
+    out_l = integ.trace(r, mi.Bool(True), need={"trans_direct"}, forward=fwd, record=True)
+    assert sum(x is not None for x in out_l["_lists"]) == 5  # interface, reflection, transmission, order 2, direct
+    np.testing.assert_array_equal(np.array(out_l["rgb"]), np.array(out["rgb"]))
+    integ.backward(r, mi.Bool(True), out_l, adj, forward=fwd)
+    g_ls = grads()
     nonzero = 0
     for k in keys:
         scale = max(np.abs(g_ad[k]).max(), 1e-6)
         np.testing.assert_allclose(g_rp[k], g_ad[k], atol=1e-3 * scale, err_msg=k)
+        np.testing.assert_allclose(g_ls[k], g_rp[k], rtol=1e-5, atol=1e-6 * scale, err_msg=k)
         nonzero += np.abs(g_ad[k]).max() > 1e-4
     assert nonzero >= 15
 
@@ -243,6 +250,13 @@ def test_mi_render_backward_reaches_aovs(rng):
     g = np.array(dr.grad(params[key])).reshape(-1, 10)
     assert np.isfinite(g).all() and np.abs(g[:, :3]).sum() > 0
     assert np.abs(g[:, 3:6]).sum() == 0, "shell scales are a BVH proxy and carry no gradient"
+    # the replay over stored hit lists (default) and the re-tracing replay (lists over budget) agree
+    scene.integrator().stored_hits_mb = 0.0
+    dr.clear_grad(params[key])
+    img = mi.render(scene, params)
+    dr.backward(dr.sum(img[..., 3], axis=None))
+    np.testing.assert_allclose(np.array(dr.grad(params[key])).reshape(-1, 10), g, rtol=1e-4,
+                               atol=1e-6 * np.abs(g).max())
 
 
 # ---------------------------------------------------------------- components
@@ -332,3 +346,29 @@ def test_bad_input_errors(tmp_path, rng):
         make_integrator({"interface": g}, ior=0.5)
     with pytest.raises(Exception, match="kernel 'disc'"):
         make_shape(g, kernel="disc")
+
+
+def test_traversal_only_pass_visits_the_same_hits(rng):
+    """benchmarks/profile_step.py's traversal-only pass (march with budget = a pass's hit counts) stops after the
+    same hits per ray and evaluates no kernel; the count is what the pass reports in info["hits"]."""
+    g = random_set(rng, 400, spread=(1, 1, 1), scale=(0.05, 0.2))
+    integ = make_integrator({"interface": g}, components="interface")
+    o = np.column_stack([rng.uniform(-0.8, 0.8, (64, 2)), np.full(64, -4.0)])
+    d = np.column_stack([rng.uniform(-0.1, 0.1, (64, 2)), np.ones(64)])
+    r = rays(o, d)
+    gs = integ.active_set("interface")
+    info = {}
+    acc = integ.march(gs, r.o, r.d, mi.Bool(True), info=info)
+    hits = mi.UInt32(info["hits"])
+    dr.eval(acc, hits)
+    h = to_np(hits)
+    assert h.max() >= 3 and (h == 0).sum() < len(h)
+    empty = integ.march(gs, r.o, r.d, mi.Bool(True), budget=hits, info=info)
+    np.testing.assert_array_equal(to_np(info["hits"]), h)
+    assert float(dr.max(dr.abs(empty.A))[0] if dr.width(empty.A) else 0.0) == 0.0
+    integ.march(gs, r.o, r.d, mi.Bool(True), budget=mi.UInt32(np.minimum(h, 2).astype(np.uint32)), info=info)
+    np.testing.assert_array_equal(to_np(info["hits"]), np.minimum(h, 2))
+    # a recording pass, then passes of another width (the lists must not leak into later loops)
+    integ.trace(r, mi.Bool(True), record=True)
+    r2 = rays(o[:40], d[:40])
+    np.testing.assert_allclose(to_np(integ.trace(r2, mi.Bool(True))["rgb"]), to_np(acc.C)[:, :40], atol=1e-6)

@@ -1,0 +1,228 @@
+"""Where one training step's time goes: a profile of GLINT's training loop, phase by phase (issue 11).
+
+Every phase of Trainer.step and of the structure step that follows it is bracketed by dr.sync_thread(), and the
+kernels it launched are read from Dr.Jit's kernel history: wall time, kernel execution time, compile time (codegen +
+LLVM backend of kernels that missed the cache), launches. "host" is the rest of the wall time: Python, numpy,
+host<->device copies, tracing the kernels' code. Then, on one batch, each ray pass of the forward is timed twice on
+the same rays: as it runs (BVH traversal + kernel evaluation + compositing) and as a traversal only (the same BVH
+queries and stepping, stopped after the same number of hits per ray, no kernel evaluated), which gives the share of
+a step spent in BVH traversal (forward + the replay, which re-traces every pass).
+
+    .venv/bin/python benchmarks/profile_step.py                        # the bundled demo room, fresh init
+    .venv/bin/python benchmarks/profile_step.py --run out/demo/run     # a trained run: its config and Gaussians
+    .venv/bin/python benchmarks/profile_step.py --scene SCENE.xml [--at 0.3] [--steps 30]
+
+Syncing between phases removes the overlap of Python with running kernels, so the phases add up to a little more
+than an unprofiled step; the table prints both. Results: benchmarks/results/profile_step_<name>.{md,json}.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import statistics
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import glint_mi  # noqa: E402
+
+glint_mi.set_variant()
+import drjit as dr  # noqa: E402
+import mitsuba as mi  # noqa: E402
+
+from glint_mi.config import TrainConfig  # noqa: E402
+from glint_mi.optimize import parse_sets  # noqa: E402
+from glint_mi.render import floats  # noqa: E402
+from glint_mi.scene import read_scene  # noqa: E402
+from glint_mi.train import Trainer  # noqa: E402
+
+PHASES = ("sample", "forward", "objective", "backward", "update", "structure", "bvh")
+
+
+class Profiler:
+    """Trainer.phase: per phase, wall time and the kernels launched (execution, compiles), summed over steps."""
+
+    def __init__(self):
+        self.rows = defaultdict(lambda: dict(wall=0.0, exec=0.0, compile=0.0, launches=0, compiles=0))
+
+    @contextlib.contextmanager
+    def phase(self, name: str):
+        dr.sync_thread()
+        dr.kernel_history()  # drop what ran before the phase
+        t0 = time.perf_counter()
+        yield
+        dr.sync_thread()
+        r = self.rows[name]
+        r["wall"] += time.perf_counter() - t0
+        for k in dr.kernel_history():
+            r["launches"] += 1
+            r["exec"] += k.get("execution_time", 0.0) / 1e3
+            if not k.get("cache_hit", 1):
+                r["compiles"] += 1
+                r["compile"] += (k.get("codegen_time", 0.0) + k.get("backend_time", 0.0)) / 1e3
+
+
+def steps(tr: Trainer, n: int, profiler: Profiler | None):
+    """Run n training steps (each followed by its structure step, as Trainer.train does); wall seconds per step."""
+    tr.phase = profiler.phase if profiler else (lambda name: contextlib.nullcontext())
+    times = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        st = tr.stage()
+        tr.step()
+        tr._structure(st)
+        dr.sync_thread()
+        times.append(time.perf_counter() - t0)
+        tr.it += 1
+    tr.phase = lambda name: contextlib.nullcontext()
+    return times
+
+
+def timed(fn, reps: int = 3) -> float:
+    """Median seconds of fn() (after one call that compiles)."""
+    fn()
+    out = []
+    for _ in range(reps):
+        dr.sync_thread()
+        t0 = time.perf_counter()
+        fn()
+        dr.sync_thread()
+        out.append(time.perf_counter() - t0)
+    return statistics.median(out)
+
+
+def traversal(tr: Trainer) -> list[dict]:
+    """Each forward pass of one batch, as it runs and as a traversal only with the same hits per ray."""
+    integ, c, st = tr.integ, tr.cfg, tr.stage()
+    integ.enabled = set(st["traced"])
+    b = tr.bank.sample(np.random.default_rng(123), c.patches, c.patch)
+    o, d = mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction))
+    active = mi.Bool(True)
+    intf, refl, trans = (integ.active_set(r) for r in ("interface", "reflection", "transmission"))
+    with dr.suspend_grad():
+        I = integ.march(intf, o, d, active)
+        dr.eval(I)
+        kd, ks, kt, do_r, do_t = integ._weights(I, d, active)
+        x_i, d_r = integ._secondary(I, o, d)
+        dr.eval(x_i, d_r, ks, kt, do_r, do_t)
+        passes = [("interface (camera)", intf, o, d, active, None)]
+        if refl:
+            passes.append(("reflection (from x_I)", refl, x_i, d_r, do_r, ks))
+        if trans:
+            passes.append(("transmission (from x_I)", trans, x_i, d, do_t, kt))
+            passes.append(("transmission (camera, direct)", trans, o, d, active, None))
+        rows = []
+        for name, gs, oo, dd, act, w in passes:
+            info = {}
+
+            def full():
+                acc = integ.march(gs, oo, dd, act, weight=w, info=info)
+                dr.eval(acc, info["hits"])
+
+            full()
+            hits = mi.UInt32(info["hits"])
+            dr.eval(hits)
+
+            def walk():
+                integ.march(gs, oo, dd, act, weight=w, budget=hits, info=info)
+                dr.eval(info["hits"])
+
+            t_full, t_walk = timed(full), timed(walk)
+            h = np.array(hits, np.float64)
+            rows.append(dict(name=name, gaussians=len(tr.sets[gs.role]), hits_mean=float(h.mean()),
+                             hits_max=int(h.max()), full_ms=1e3 * t_full, traversal_ms=1e3 * t_walk))
+    return rows
+
+
+def markdown(name, tr, plain, prof, n, trav) -> str:
+    rays = tr.cfg.patches * tr.cfg.patch ** 2
+    step = statistics.median(plain)
+    prof_total = sum(r["wall"] for r in prof.rows.values()) / n
+    lines = [f"### {name}", "",
+             f"{rays} rays per step; Gaussians: " + ", ".join(f"{r} {len(s)}" for r, s in tr.sets.items()
+                                                               if r not in tr.dropped)
+             + f"; stage '{tr.stage()['name']}' (iteration {tr.it} of {tr.cfg.iterations}).", "",
+             f"Unprofiled step: **{1e3 * step:.0f} ms** (median of {len(plain)}) = **{rays / step:.0f} rays/s**; "
+             f"profiled (a sync between phases): {1e3 * prof_total:.0f} ms.", "",
+             "| phase | ms / step | share | kernels ms | compile ms | host ms | launches / step |",
+             "|---|---|---|---|---|---|---|"]
+    for ph in PHASES:
+        r = prof.rows.get(ph)
+        if r is None:
+            continue
+        host = r["wall"] - r["exec"] - r["compile"]
+        lines.append(f"| {ph} | {1e3 * r['wall'] / n:.1f} | {100 * r['wall'] / n / prof_total:.1f} % | "
+                     f"{1e3 * r['exec'] / n:.1f} | {1e3 * r['compile'] / n:.1f} | {1e3 * host / n:.1f} | "
+                     f"{r['launches'] / n:.1f} |")
+    lines += ["", "| forward pass | Gaussians | hits / ray (mean, max) | as run ms | traversal only ms | traversal share |",
+              "|---|---|---|---|---|---|"]
+    for r in trav:
+        lines.append(f"| {r['name']} | {r['gaussians']} | {r['hits_mean']:.1f}, {r['hits_max']} | {r['full_ms']:.1f} | "
+                     f"{r['traversal_ms']:.1f} | {100 * r['traversal_ms'] / max(r['full_ms'], 1e-9):.0f} % |")
+    walk = sum(r["traversal_ms"] for r in trav) / 1e3
+    fwd = prof.rows["forward"]["wall"] / n
+    passes = 1 if tr.cfg.stored_hits else 2
+    how = ("the replay walks the stored hit lists (stored_hits)" if tr.cfg.stored_hits
+           else "forward + replay, which re-traces every pass (stored_hits false)")
+    lines += ["", f"BVH traversal: {1e3 * walk:.0f} ms in the forward ({100 * walk / max(fwd, 1e-9):.0f} % of it); "
+              f"{how}: {1e3 * passes * walk:.0f} ms = **{100 * passes * walk / prof_total:.0f} % of the step**. "
+              f"(Traversal-only timings run on their own and can exceed the pass as run by the timing noise.)", ""]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", default=str(ROOT / "scenes" / "glass_room" / "optimize.xml"))
+    ap.add_argument("--run", help="profile a trained run folder (its checkpoint and config) instead of a fresh init")
+    ap.add_argument("--preset", default="quick")
+    ap.add_argument("--at", type=float, default=0.25, help="fresh init: profile from this fraction of the schedule "
+                    "(0.25: joint stage, all sets traced, densifying)")
+    ap.add_argument("--warm", type=int, default=3, help="steps run first (they compile the kernels)")
+    ap.add_argument("--steps", type=int, default=20, help="steps timed unprofiled, and again profiled")
+    ap.add_argument("--name", help="results name (default: the scene's or run's folder)")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="TrainConfig override")
+    args = ap.parse_args(argv)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    quiet = lambda *a, **k: None
+    tmp = tempfile.TemporaryDirectory()
+    overrides = parse_sets(args.set)
+    if args.run:
+        cfg = TrainConfig.load(Path(args.run) / "config.json")
+        cfg = TrainConfig.from_dict({**cfg.to_dict(), **overrides}, source="--set")
+        tr = Trainer(args.run, cfg, resume=True, log=quiet)
+        name = args.name or Path(args.run).name
+    else:
+        cfg = TrainConfig.for_preset(args.preset, **overrides)
+        spec = read_scene(args.scene)
+        tr = Trainer(Path(tmp.name) / "run", cfg, scene=spec, log=quiet)
+        tr.it = tr.cfg.at(args.at)
+        name = args.name or Path(spec.dataset).name
+    t0 = time.perf_counter()
+    steps(tr, args.warm, None)
+    print(f"{name}: {args.warm} warm-up steps (compiles) in {time.perf_counter() - t0:.1f} s", flush=True)
+    plain = steps(tr, args.steps, None)
+    prof = Profiler()
+    steps(tr, args.steps, prof)
+    trav = traversal(tr)
+    text = markdown(name, tr, plain, prof, args.steps, trav)
+    print(text)
+    out = ROOT / "benchmarks" / "results"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"profile_step_{name}.md").write_text(text + "\n")
+    (out / f"profile_step_{name}.json").write_text(json.dumps(
+        {"name": name, "rays_per_step": tr.cfg.patches * tr.cfg.patch ** 2, "step_s": plain,
+         "phases": {k: dict(v) for k, v in prof.rows.items()}, "steps": args.steps, "traversal": trav,
+         "gaussians": {r: len(s) for r, s in tr.sets.items() if r not in tr.dropped}}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
