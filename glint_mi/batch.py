@@ -50,6 +50,7 @@ class Batch:
     depth_affine: np.ndarray | None     # [M,2] (w, q) of each ray's view: prior ~ w * metric depth + q (depth_align sfm)
     patches: int
     patch: int
+    cue: np.ndarray | None = None       # [M] SfM see-through cue: +1 seen through, -1 opaque, 0 no evidence
 
 
 def downsampled_view(view: View, k: int) -> View:
@@ -80,7 +81,7 @@ class RayBank:
         views = [downsampled_view(v, k) for v in fine]
         if k > 1 and any(v.width < 3 or v.height < 3 for v in views):
             raise ValueError(f"train_downsample = {k} leaves images smaller than 3 x 3 pixels; use a smaller factor.")
-        self.views = views
+        self.views, self.k = views, k
         self.sizes = [(v.height, v.width) for v in views]
         self.offsets = np.cumsum([0] + [h * w for h, w in self.sizes])
         self.rgb = np.concatenate([block_mean(v.load_image(), k).reshape(-1, 3) for v in fine]).astype(np.float32)
@@ -97,6 +98,7 @@ class RayBank:
                 self.priors[kind] = np.concatenate([m.reshape(h * w, -1) for m, (h, w) in zip(maps, self.sizes)])
         self.priors.setdefault("depth", None)
         self.depth_affine = None  # see align_depth_priors
+        self.cue = None  # see see_through_cue
         self.glass = None
         if glass_masks:
             gts = [v.load_gt() for v in fine]
@@ -159,6 +161,50 @@ class RayBank:
         return {"aligned_views": done, "views": V, "points_per_view_median": float(np.median(counts)),
                 "inlier_share_median": float(np.median(inlier_share)) if inlier_share else float("nan")}
 
+    def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04) -> dict:
+        """A 3D cue for L_trans that does not come from the model (glint_mi's; the paper has only the albedo prior):
+        an SfM feature tracked in a view lies on the surface that view sees, or behind it if that surface is glass.
+        With the depth prior aligned to the metric SfM points (:meth:`align_depth_priors`; the prior sees the glass
+        surface), an observation more than ``margin`` x its depth behind the prior is seen through (+1), one within
+        it is on an opaque surface (-1). Every pixel takes the label of its nearest observation within ``radius`` x
+        the image width (0 farther away, or where observations on one pixel disagree). Sets ``self.cue`` [pixels]
+        int8; views without an SfM fit or without tracks stay 0. Returns counts for the run report."""
+        from scipy.ndimage import distance_transform_edt
+
+        self.cue = np.zeros(self.offsets[-1], np.int8)
+        prior = self.priors.get("depth")
+        if prior is None or self.depth_affine is None or not observations:
+            why = ("no depth prior" if prior is None else "the depth prior is not aligned to SfM (depth_align: sfm)"
+                   if self.depth_affine is None else "no SfM tracks (a COLMAP model with images and points3D)")
+            return {"views": 0, "why": why}
+        n_t = n_o = used = 0
+        for i, v in enumerate(self.views):
+            ob = observations.get(v.name)
+            if ob is None or not np.isfinite(self.depth_affine[i, 0]) or len(ob[0]) == 0:
+                continue
+            xy, xyz = ob
+            h, w = self.sizes[i]
+            z = ((xyz - self.origins[i]) @ self.axes[i].astype(np.float64))[:, 2]
+            col, row = np.floor(xy[:, 0] / self.k).astype(np.int64), np.floor(xy[:, 1] / self.k).astype(np.int64)
+            ok = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (z > 0)
+            col, row, z = col[ok], row[ok], z[ok]
+            pr = prior[self.offsets[i] + row * w + col, 0].astype(np.float64)
+            a, q = self.depth_affine[i]
+            seen = pr > 0
+            lab = np.where(z[seen] > (pr[seen] - q) / a * (1.0 + margin), 1, -1)
+            acc = np.zeros((h, w))
+            np.add.at(acc, (row[seen], col[seen]), lab)
+            if not acc.any():
+                continue
+            dist, (iy, ix) = distance_transform_edt(acc == 0, return_indices=True)
+            lab_map = np.sign(acc[iy, ix]) * (dist <= radius * w)
+            self.cue[self.offsets[i]:self.offsets[i + 1]] = lab_map.ravel().astype(np.int8)
+            n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
+        share = lambda x: float(np.mean(self.cue == x))
+        rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
+               "pixels_seen_through": share(1), "pixels_opaque": share(-1), "margin": margin, "radius": radius}
+        return rep if used else {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
+
     @property
     def has(self) -> set[str]:
         return {k for k, v in self.priors.items() if v is not None}
@@ -180,7 +226,8 @@ class RayBank:
         return Batch(view, flat, self.origins[view], self.dirs[flat], self.axes[view], self.rgb[flat],
                      None if get("depth") is None else get("depth")[:, 0], get("normal"), get("albedo"),
                      None if self.glass is None else self.glass[flat],
-                     None if self.depth_affine is None else self.depth_affine[view], patches, p)
+                     None if self.depth_affine is None else self.depth_affine[view], patches, p,
+                     None if self.cue is None else self.cue[flat])
 
 
 def patch_neighbours(patches: int, p: int):

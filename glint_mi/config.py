@@ -62,6 +62,9 @@ class TrainConfig:
     lr_transparency: float = 0.05
     adam_eps: float = 1e-15
     adam: str = "selective"              # selective (touched rows only, per-row bias correction) | dense
+    stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
+    #                                      the BVH queries (exact: same hits and arithmetic; rays x max_hits x 4 B
+    #                                      per pass); false = re-trace (benchmarks/profile_step.py compares)
     lr_multiplier: float = 1.0           # x every learning rate (ray batches see each Gaussian less often)
     # losses (method section 3); a weight of 0 switches a term off
     w_l1: float = 1.2
@@ -76,6 +79,15 @@ class TrainConfig:
     w_trans: float = 0.01
     w_treg: float = 0.01
     w_plausibility: float = 0.05
+    plausibility_mask: str = "opaque"    # where G_trans is pulled to the interface: opaque = L_trans's opaque mask
+    #                                      (the paper); interface = 1 - t where the interface is a surface (measured
+    #                                      on a room without albedo prior: it also pulls G_trans off the glass, the
+    #                                      transparent mask shrinks to 0.3 % and components: auto drops G_trans)
+    trans_cue: str = "auto"              # L_trans's 3D cue from the SfM tracks (RayBank.see_through_cue): transparent
+    #                                      only near features seen behind the depth prior, opaque near features on
+    #                                      it. auto: when there is no albedo prior; sfm: always; none: the paper
+    cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
+    cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
     tau_delta: float = 0.005             # L_trans depth gap, x scene extent
     trans_min_alpha: float = 0.5         # L_trans: a depth is valid where its set's accumulated alpha reaches this
@@ -172,6 +184,8 @@ class TrainConfig:
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
         need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")
+        need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
+        need(self.trans_cue in ("auto", "sfm", "none"), "trans_cue", "use auto, sfm or none")
         need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "
              "alpha compositing, the 3DGS-family baselines)")
         comps = self.components.replace(" ", "")

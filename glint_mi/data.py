@@ -172,6 +172,64 @@ def _read_colmap_binary(folder: Path):
     return cams, images, np.array(pts).reshape(-1, 3), np.array(cols, np.uint8).reshape(-1, 3)
 
 
+def colmap_folder(root: Path) -> Path:
+    return root / "sparse" / "0" if (root / "sparse" / "0").exists() else root / "sparse"
+
+
+def read_observations(root: Path) -> dict[str, tuple[np.ndarray, np.ndarray]] | None:
+    """The SfM tracks of a COLMAP model: per image (keyed by the name's stem, as View.name), the pixel positions
+    [n,2] of its features that triangulated to a 3D point and those points [n,3]. None without a COLMAP model or
+    without points3D (a transforms.json dataset)."""
+    sparse = colmap_folder(Path(root))
+    obs: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    if (sparse / "images.bin").exists() and (sparse / "points3D.bin").exists():
+        def rd(f, fmt):
+            return struct.unpack("<" + fmt, f.read(struct.calcsize("<" + fmt)))
+
+        xyz = {}
+        with open(sparse / "points3D.bin", "rb") as f:
+            for _ in range(rd(f, "Q")[0]):
+                pid, x, y, z, *_rest, tl = rd(f, "QdddBBBdQ")
+                f.read(8 * tl)
+                xyz[pid] = (x, y, z)
+        raw = []
+        with open(sparse / "images.bin", "rb") as f:
+            for _ in range(rd(f, "Q")[0]):
+                rd(f, "idddddddi")
+                name = b""
+                while (c := f.read(1)) != b"\x00":
+                    name += c
+                n2 = rd(f, "Q")[0]
+                rec = np.frombuffer(f.read(24 * n2), dtype=[("x", "<f8"), ("y", "<f8"), ("id", "<i8")])
+                raw.append((name.decode(), np.column_stack([rec["x"], rec["y"]]), rec["id"]))
+    elif (sparse / "images.txt").exists() and (sparse / "points3D.txt").exists():
+        xyz = {}
+        with open(sparse / "points3D.txt") as f:
+            for line in f:
+                if line.strip() and not line.startswith("#"):
+                    tok = line.split()
+                    xyz[int(tok[0])] = tuple(float(t) for t in tok[1:4])
+        with open(sparse / "images.txt") as f:
+            lines = [line for line in f if not line.startswith("#")]
+        raw = []
+        for ln in range(0, len(lines) - 1, 2):
+            head, pts2d = lines[ln].split(), lines[ln + 1].split()
+            if not head:
+                continue
+            try:
+                a = np.array(pts2d, np.float64).reshape(-1, 3)
+            except ValueError:
+                raise DatasetError(f"{sparse / 'images.txt'}: the points line of image '{' '.join(head[9:])}' is not "
+                                   f"'X Y POINT3D_ID' triples.") from None
+            raw.append((" ".join(head[9:]), a[:, :2], a[:, 2].astype(np.int64)))
+    else:
+        return None
+    for name, xy, ids in raw:
+        keep = np.array([i in xyz for i in ids.tolist()], bool) if len(ids) else np.zeros(0, bool)
+        obs[Path(name).stem] = (xy[keep], np.array([xyz[i] for i in ids[keep].tolist()], np.float64).reshape(-1, 3))
+    return obs
+
+
 def _intrinsics(model, params, where) -> np.ndarray:
     if model == "SIMPLE_PINHOLE":
         f, cx, cy = params
@@ -195,7 +253,7 @@ def _find_image(folder: Path, name: str) -> Path | None:
 
 
 def load_colmap(root: Path, images_dir: Path | None = None):
-    sparse = root / "sparse" / "0" if (root / "sparse" / "0").exists() else root / "sparse"
+    sparse = colmap_folder(root)
     if (sparse / "cameras.bin").exists():
         cams, images, pts, cols = _read_colmap_binary(sparse)
     elif (sparse / "cameras.txt").exists():

@@ -12,6 +12,7 @@ evaluation of :mod:`glint_mi.evaluate`.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import io
@@ -69,6 +70,8 @@ class Trainer:
         self.report: dict = {"components": {}, "init": {}, "events": []}
         self.rng = np.random.default_rng(cfg.seed)
         self.stop_requested = False
+        # phase(name) -> context manager around each part of a step; benchmarks/profile_step.py times them
+        self.phase = lambda name: contextlib.nullcontext()
         if resume:
             self._load_checkpoint()
         else:
@@ -81,6 +84,15 @@ class Trainer:
             self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
             self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
                      f"{len(self.bank.views)} views (the others keep the per-batch fit)")
+        if cfg.trans_cue == "sfm" or (cfg.trans_cue == "auto" and "albedo" not in self.bank.has
+                                      and "transmission" in self.sets):
+            from .data import read_observations
+
+            cue = self.bank.see_through_cue(read_observations(self.ds.root), cfg.cue_margin, cfg.cue_radius)
+            self.report["trans_cue"] = cue
+            self.log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
+                     f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
+                     + (f" ({cue['why']})" if "why" in cue else ""))
         from .dataset.priors import priors_are_derived
 
         self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
@@ -187,18 +199,24 @@ class Trainer:
         import drjit as dr
         import mitsuba as mi
 
-        c, st = self.cfg, self.stage()
+        c, st, phase = self.cfg, self.stage(), self.phase
         self.integ.enabled = set(st["traced"])
-        b = self.bank.sample(self.rng, c.patches, c.patch)
-        ray = mi.Ray3f(mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction)))
-        fwd = mi.Vector3f(*floats(b.axes[:, :, 2]))
+        with phase("sample"):
+            b = self.bank.sample(self.rng, c.patches, c.patch)
+            ray = mi.Ray3f(mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction)))
+            fwd = mi.Vector3f(*floats(b.axes[:, :, 2]))
         need = {"trans_direct"} if "transmission" in st["traced"] else set()
         active = mi.Bool(True)
-        out = self.integ.trace(ray, active, need=need, forward=fwd)
-        dr.eval(out["_passes"])
-        terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent)
-        self.integ.backward(ray, active, out, adjoints, forward=fwd)
-        self._update(st)
+        with phase("forward"):
+            out = self.integ.trace(ray, active, need=need, forward=fwd, record=c.stored_hits)
+            dr.eval(out["_passes"], out.get("_lists"))
+        with phase("objective"):
+            terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent)
+        with phase("backward"):
+            self.integ.backward(ray, active, out, adjoints, forward=fwd)
+            dr.eval()  # run the replay now (the gradients are read next anyway): its time is the backward's
+        with phase("update"):
+            self._update(st)
         return {**terms, **stats}
 
     def _update(self, st):
@@ -236,6 +254,12 @@ class Trainer:
     # ---------------------------------------------------- structure steps
     def _structure(self, st):
         """Densify / prune / reset on their schedules and the components: auto decisions."""
+        with self.phase("structure"):
+            self._structure_now(st)
+        with self.phase("bvh"):
+            self._push(st["trained"])  # only trained sets change (Adam, densify, resets): others keep their BVH
+
+    def _structure_now(self, st):
         c, it = self.cfg, self.it + 1
         if self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from):
             for role in sorted(st["trained"] & set(self.sets)):
@@ -246,7 +270,6 @@ class Trainer:
                 fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
                 self.strategy.reset(it, role, self.sets[role], self.adam, fields)
         self._auto_components(st)
-        self._push(st["trained"])  # only trained sets change (Adam, densify, resets): others keep their BVH
 
     def _auto_components(self, st) -> None:
         """components: auto — keep transmission / reflection only where the evidence calls for them."""
@@ -262,7 +285,10 @@ class Trainer:
                 continue
             share = np.mean([h.get(f"share_{role}", 0.0) for h in recent]) if recent else 0.0
             if role == "transmission":
-                cover = np.mean([h.get("mask_t", 0.0) for h in recent]) if recent else 0.0
+                # the mask's coverage swings between batches and with opacity resets (0 - 9 % within 200
+                # iterations on the bundled room): average it over every batch since L_trans started
+                since = [h["mask_t"] for h in self.history if "mask_t" in h]
+                cover = float(np.mean(since)) if since else 0.0
                 keep = cover >= c.auto_trans_min and share >= c.auto_contrib_min
                 why = (f"L_trans transparent mask covers {100 * cover:.2f} % of sampled pixels "
                        f"(threshold {100 * c.auto_trans_min:.2f} %), share of image energy {100 * share:.2f} %")

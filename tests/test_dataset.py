@@ -249,8 +249,26 @@ def test_sfm_points_lie_on_surfaces(tmp_path):
     room = build_room(2)
     cams = trajectory(room, 10, 96, 54, 2)
     scene = glint_mi.load_file(write_scene_files(tmp_path, room, cams, 16))
-    xyz, rgb, stats = sfm_points(scene, tmp_path, cams, "known", width=384, spp=128)
+    xyz, rgb, stats, tracks = sfm_points(scene, tmp_path, cams, "known", width=384, spp=128)
     assert stats["points3D"] >= 20 and stats["mean_reprojection_error_px"] < 2.0
+    # the tracks: each observation is where its point projects in that view (dataset pixels), and they reach
+    # the COLMAP files and read back as the same observations
+    from glint_mi.data import read_observations
+    from glint_mi.dataset.cameras import MI_TO_COLMAP, write_colmap_text
+    n_obs = 0
+    for c in cams:
+        xy, rows = tracks[c.name]
+        pc = (xyz[rows] - c.c2w[:3, 3]) @ (c.c2w[:3, :3] @ MI_TO_COLMAP)  # OpenCV camera coordinates
+        proj = np.column_stack([c.fx * pc[:, 0] / pc[:, 2] + c.cx, c.fy * pc[:, 1] / pc[:, 2] + c.cy])
+        if len(rows):
+            assert np.median(np.linalg.norm(proj - xy, axis=1)) < 1.0
+        n_obs += len(rows)
+    assert n_obs >= 2 * stats["points3D"]
+    write_colmap_text(tmp_path / "sparse" / "0", cams, (xyz, rgb), tracks)
+    obs = read_observations(tmp_path)
+    for c in cams:
+        np.testing.assert_allclose(obs[c.name][0], tracks[c.name][0], atol=1e-5)
+        np.testing.assert_allclose(obs[c.name][1], xyz[tracks[c.name][1]], rtol=1e-6, atol=1e-6)
     # distance from each point to the first surface seen from the nearest camera along the line of sight
     errs = []
     for p in xyz:
@@ -365,3 +383,40 @@ def test_cycles_rendered_scene_is_a_complete_dataset(tmp_path):
         assert np.mean(rel < 0.01) > 0.95 and np.median(cos) > 0.999 and np.mean(cos > 0.9) > 0.85
         assert np.mean((gt["glass"] > 0.5) == (ref["T"][..., 0] > 0.5)) > 0.97
         assert v.load_image().shape == (v.height, v.width, 3)
+
+
+def test_sfm_observations_text_and_binary(tmp_path):
+    """read_observations: per image, the tracked features that triangulated (POINT3D_ID -1 dropped) and their
+    points, the same from COLMAP's text and binary models; None without points3D."""
+    from glint_mi.data import read_observations
+
+    pts = {7: (1.0, 2.0, 3.0), 9: (-1.0, 0.5, 4.0)}
+    ims = [(1, "a.png", [(10.5, 4.0, 7), (3.0, 3.0, -1), (20.0, 8.0, 9)]), (2, "sub/b.jpg", [])]
+    txt = tmp_path / "txt" / "sparse" / "0"
+    txt.mkdir(parents=True)
+    with open(txt / "images.txt", "w") as f:
+        f.write("# header\n")
+        for iid, name, obs in ims:
+            f.write(f"{iid} 1 0 0 0 0 0 0 1 {name}\n" + " ".join(f"{x} {y} {p}" for x, y, p in obs) + "\n")
+    with open(txt / "points3D.txt", "w") as f:
+        for pid, xyz in pts.items():
+            f.write(f"{pid} {xyz[0]} {xyz[1]} {xyz[2]} 1 2 3 0.5 1 0\n")
+    bin_ = tmp_path / "bin" / "sparse" / "0"
+    bin_.mkdir(parents=True)
+    with open(bin_ / "images.bin", "wb") as f:
+        f.write(struct.pack("<Q", len(ims)))
+        for iid, name, obs in ims:
+            f.write(struct.pack("<i7di", iid, 1, 0, 0, 0, 0, 0, 0, 1) + name.encode() + b"\x00")
+            f.write(struct.pack("<Q", len(obs)) + b"".join(struct.pack("<ddq", x, y, p) for x, y, p in obs))
+    with open(bin_ / "points3D.bin", "wb") as f:
+        f.write(struct.pack("<Q", len(pts)))
+        for pid, xyz in pts.items():
+            f.write(struct.pack("<Q3d3BdQ", pid, *xyz, 1, 2, 3, 0.5, 1) + struct.pack("<ii", 1, 0))
+    for root in (tmp_path / "txt", tmp_path / "bin"):
+        obs = read_observations(root)
+        assert sorted(obs) == ["a", "b"]
+        np.testing.assert_allclose(obs["a"][0], [[10.5, 4.0], [20.0, 8.0]])
+        np.testing.assert_allclose(obs["a"][1], [pts[7], pts[9]])
+        assert obs["b"][0].shape == (0, 2) and obs["b"][1].shape == (0, 3)
+    (txt / "points3D.txt").unlink()
+    assert read_observations(tmp_path / "txt") is None

@@ -445,3 +445,58 @@ def test_depth_prior_alignment_to_sfm_points(room, rng):
     assert tr.report["depth_align"]["aligned_views"] == len(ds.train_views)
     tr.train(progress=False)
     assert all(np.isfinite(h["depth"]) and h["depth"] > 0 for h in tr.history)
+
+
+def test_sfm_see_through_cue(room, rng):
+    """see_through_cue labels each pixel by its nearest SfM observation: a feature behind the surface the aligned
+    depth prior sees is seen through (+1), one on it is opaque (-1), pixels beyond the radius get 0; the cue
+    reaches the batch and gates the L_trans masks; the trainer builds it when there is no albedo prior."""
+    import json
+
+    from glint_mi.batch import RayBank, pixel_rays
+    from glint_mi.losses import transparency_masks
+
+    ds = load_dataset(room)
+    bank = RayBank(ds.train_views, room)
+    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
+    bank.depth_affine = np.array([[rec[v.name]["depth_scale"], rec[v.name]["depth_shift"]] for v in bank.views])
+    obs, labels = {}, {}
+    for v in ds.train_views:  # features on the ground-truth surface; those in the left third 1.5x deeper
+        gt = v.load_gt()
+        ys, xs = np.nonzero(gt["depth"] > 0)
+        k = rng.choice(len(xs), 25, replace=False)
+        xs, ys = xs[k], ys[k]
+        d = pixel_rays(v, np.stack([xs, ys], -1))
+        dist = gt["depth"][ys, xs] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))
+        through = xs < v.width // 3
+        dist = np.where(through, 1.5 * dist, dist)
+        obs[v.name] = (np.stack([xs + 0.5, ys + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])
+        labels[v.name] = (xs, ys, np.where(through, 1, -1))
+    rep = bank.see_through_cue(obs, margin=0.05, radius=0.1)
+    assert rep["views"] == len(ds.train_views) and rep["seen_through_observations"] > 0
+    for i, v in enumerate(bank.views):
+        cue = bank.cue[bank.offsets[i]:bank.offsets[i + 1]].reshape(v.height, v.width)
+        xs, ys, lab = labels[v.name]
+        assert (cue[ys, xs] == lab).mean() > 0.9  # the prior is corrupted (noise, blur): a few may flip
+        # beyond the radius of every observation: no label
+        yy, xx = np.mgrid[0:v.height, 0:v.width]
+        far = np.min((yy[..., None] - ys) ** 2 + (xx[..., None] - xs) ** 2, axis=-1) > (0.1 * v.width + 1) ** 2
+        assert not cue[far].any()
+    b = bank.sample(rng, 4, 8)
+    np.testing.assert_array_equal(b.cue, bank.cue[b.flat])
+    # the masks: transparent only where the cue says seen through, opaque also where it says opaque
+    H, W = 12, 16
+    D_I, D_T = np.full((H, W), 2.0), np.full((H, W), 3.0)  # "behind" everywhere
+    cue = np.zeros((H, W), np.int8)
+    cue[:, :8], cue[:, 12:] = 1, -1
+    m_t, m_o = transparency_masks(D_T, D_I, 0.005, cue=cue)
+    assert m_t[2:-1, 1:7].min() == 1 and m_t[:, 8:].max() == 0
+    assert m_o[1:-1, 13:-1].min() == 1 and m_o[:, :12].max() == 0
+    # the cue replaces the depth gap: seen through is transparent even where D_T = D_I, and without evidence a
+    # pixel votes for nothing
+    m_t, m_o = transparency_masks(D_I, D_I, 0.005, cue=cue)  # D_T = D_I: "same" everywhere
+    assert m_t[2:-1, 1:7].min() == 1 and m_o[:, :12].max() == 0 and m_t[:, 8:].max() == 0
+    # the trainer: no albedo prior -> the cue from the dataset's tracks (none here: reported, not fatal)
+    tr = Trainer(room.parent / "cue_run", tiny_cfg(iterations=2, patches=4, priors="all", trans_cue="sfm"),
+                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    assert tr.report["trans_cue"]["views"] == 0 and "why" in tr.report["trans_cue"]

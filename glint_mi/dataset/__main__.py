@@ -47,7 +47,16 @@ def main(argv=None) -> int:
     cy.add_argument("scene", type=Path)
     cy.add_argument("--views", help="comma list of view names (default: the test split)")
     cy.add_argument("--spp", type=int, default=256)
+    tr = sub.add_parser("tracks", help="re-triangulate a generated scene from its sfm/images and rewrite sparse/0 "
+                        "with the SfM tracks (scenes made before tracks were written)")
+    tr.add_argument("scene", type=Path)
     args = ap.parse_args(argv)
+    if args.cmd == "tracks":
+        from .generate import retriangulate
+
+        st = retriangulate(args.scene)
+        print(f"wrote {args.scene / 'sparse' / '0'}: {st['points3D']} points, {st['observations']} observations")
+        return 0
     if args.cmd == "cycles":
         from .cycles_render import CyclesUnavailable, render_cycles
 

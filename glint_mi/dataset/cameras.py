@@ -122,24 +122,35 @@ def colmap_pose(cam: Camera):
     return rotmat_to_qvec(R_w2c), t
 
 
-def write_colmap_text(folder: Path, cams: list[Camera], points=None) -> None:
-    """``cameras.txt`` (one PINHOLE camera per view), ``images.txt``, ``points3D.txt`` (xyz, rgb) in ``folder``."""
+def write_colmap_text(folder: Path, cams: list[Camera], points=None, tracks=None) -> None:
+    """``cameras.txt`` (one PINHOLE camera per view), ``images.txt``, ``points3D.txt`` (xyz, rgb) in ``folder``;
+    with ``tracks`` (per camera name: pixel positions [n,2] and point rows [n]) also each image's POINTS2D and each
+    point's TRACK, so that readers get the SfM observations (glint_mi's L_trans see-through cue uses them)."""
     folder.mkdir(parents=True, exist_ok=True)
     with open(folder / "cameras.txt", "w") as f:
         f.write("# CAMERA_ID, MODEL, WIDTH, HEIGHT, fx, fy, cx, cy\n")
         for i, c in enumerate(cams, 1):
             f.write(f"{i} PINHOLE {c.width} {c.height} {c.fx:.10g} {c.fy:.10g} {c.cx:.10g} {c.cy:.10g}\n")
+    tracks = tracks or {}
+    point_track = {}  # point row -> [(image id, point2D index)]
     with open(folder / "images.txt", "w") as f:
-        f.write("# IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n# (no 2D points)\n")
+        f.write("# IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n#   POINTS2D[] as (X, Y, POINT3D_ID)\n")
         for i, c in enumerate(cams, 1):
             q, t = colmap_pose(c)
-            f.write(f"{i} {' '.join(f'{v:.12g}' for v in q)} {' '.join(f'{v:.12g}' for v in t)} {i} {c.name}.png\n\n")
+            xy, rows = tracks.get(c.name, (np.zeros((0, 2)), np.zeros(0, np.int64)))
+            for k, r in enumerate(rows):
+                point_track.setdefault(int(r), []).append((i, k))
+            pts2d = " ".join(f"{x:.6f} {y:.6f} {int(r) + 1}" for (x, y), r in zip(xy, rows))
+            f.write(f"{i} {' '.join(f'{v:.12g}' for v in q)} {' '.join(f'{v:.12g}' for v in t)} {i} {c.name}.png\n"
+                    f"{pts2d}\n")
     with open(folder / "points3D.txt", "w") as f:
         f.write("# POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[]\n")
         if points is not None:
             xyz, rgb = points
             for i, (p, c) in enumerate(zip(xyz, rgb), 1):
-                f.write(f"{i} {p[0]:.8g} {p[1]:.8g} {p[2]:.8g} {int(c[0])} {int(c[1])} {int(c[2])} 0\n")
+                track = " ".join(f"{im} {k}" for im, k in point_track.get(i - 1, []))
+                f.write(f"{i} {p[0]:.8g} {p[1]:.8g} {p[2]:.8g} {int(c[0])} {int(c[1])} {int(c[2])} 0"
+                        f"{' ' + track if track else ''}\n")
 
 
 def write_transforms_json(path: Path, cams: list[Camera]) -> None:

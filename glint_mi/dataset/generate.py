@@ -268,11 +268,36 @@ def sfm_points(scene, folder: Path, cams: list[Camera], mode: str, width: int = 
         Image.fromarray(np.clip(np.round(linear_to_srgb(rgb) * 255), 0, 255).astype(np.uint8)).save(
             img_dir / f"{c.name}.png")
         big.append(cs)
-    xyz, rgb, stats = triangulate_known_poses(folder / "sfm", big)
+    xyz, rgb, stats, tracks = triangulate_known_poses(folder / "sfm", big)
     stats = {"sfm_image_size": [big[0].width, big[0].height], "sfm_render_seconds": time.perf_counter() - t0, **stats}
     if mode == "full":
         stats["full_sfm"] = full_sfm_pose_error(folder / "sfm", big)
-    return xyz, rgb, stats
+    return xyz, rgb, stats, {k: (xy / scale, rows) for k, (xy, rows) in tracks.items()}
+
+
+def retriangulate(folder: Path) -> dict:
+    """Known-pose SfM again from a generated scene's kept ``sfm/images`` (same SIFT, matching and triangulation as
+    :func:`sfm_points`), and ``sparse/0`` rewritten with the points and their tracks."""
+    from PIL import Image
+
+    from glint_mi.data import DatasetError, load_dataset
+
+    from .sfm import triangulate_known_poses
+
+    folder = Path(folder)
+    ds = load_dataset(folder)
+    sfm_dir = folder / "sfm" / "images"
+    if not sfm_dir.is_dir():
+        raise DatasetError(f"{sfm_dir}: missing; only scenes generated with --sfm known|full keep their SfM images.")
+    with Image.open(sfm_dir / f"{ds.views[0].name}.png") as im:
+        scale = im.width / ds.views[0].width
+    cams = [Camera(v.name, v.c2w, v.width, v.height, v.K[0, 0], v.K[1, 1], v.K[0, 2], v.K[1, 2]) for v in ds.views]
+    big = [dataclasses.replace(c, width=round(c.width * scale), height=round(c.height * scale), fx=c.fx * scale,
+                      fy=c.fy * scale, cx=c.cx * scale, cy=c.cy * scale) for c in cams]
+    xyz, rgb, stats, tracks = triangulate_known_poses(folder / "sfm", big)
+    write_colmap_text(folder / "sparse" / "0", cams, (xyz, rgb),
+                      {k: (xy / scale, rows) for k, (xy, rows) in tracks.items()})
+    return {**stats, "observations": int(sum(len(r) for _, r in tracks.values()))}
 
 
 def split_views(names: list[str], every: int = 8) -> dict:
@@ -330,11 +355,11 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     (tmp / "split.json").write_text(json.dumps(split, indent=1))
     render = render_views_cycles if renderer == "cycles" else render_views
     stats = render(scene, tmp, cams, preset.spp, progress)
-    points, sfm_stats = None, {"mode": "none"}
+    points, tracks, sfm_stats = None, None, {"mode": "none"}
     if sfm != "none":
-        xyz, rgb, st = sfm_points(scene, tmp, cams, sfm)
+        xyz, rgb, st, tracks = sfm_points(scene, tmp, cams, sfm)
         points, sfm_stats = (xyz, rgb), {"mode": sfm, **st}
-    write_colmap_text(tmp / "sparse" / "0", cams, points)
+    write_colmap_text(tmp / "sparse" / "0", cams, points, tracks)
     meta = {"generator": "glint_mi.dataset", "seed": seed, "preset": dataclasses.asdict(preset),
             "room_size_m": room.size.round(3).tolist(), "case_lo": room.case_lo.round(4).tolist(),
             "case_hi": room.case_hi.round(4).tolist(), "case_support": room.support, "glass": glass,

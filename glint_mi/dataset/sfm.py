@@ -22,8 +22,10 @@ def _extract_and_match(db: Path, images: Path, names: list[str], cam: Camera):
     pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
 
 
-def triangulate_known_poses(folder: Path, cams: list[Camera]) -> tuple[np.ndarray, np.ndarray, dict]:
-    """SIFT + exhaustive matching + triangulation with the true poses: ([P,3] xyz, [P,3] uint8 rgb, stats)."""
+def triangulate_known_poses(folder: Path, cams: list[Camera]) -> tuple[np.ndarray, np.ndarray, dict, dict]:
+    """SIFT + exhaustive matching + triangulation with the true poses: ([P,3] xyz, [P,3] uint8 rgb, stats, tracks);
+    tracks: per camera name, the pixel positions [n,2] (in these cameras' pixels) of its features that triangulated
+    and the rows [n] of their points in xyz."""
     import pycolmap
 
     images = folder / "images"
@@ -47,13 +49,19 @@ def triangulate_known_poses(folder: Path, cams: list[Camera]) -> tuple[np.ndarra
         out = tmp / "tri"
         out.mkdir()
         tri = pycolmap.triangulate_points(rec, db_path, images, out)
-    pts = tri.points3D
+        pts = tri.points3D
+        row = {pid: i for i, pid in enumerate(pts)}
+        tracks = {}
+        for image in tri.images.values():
+            obs = [(p.xy, row[p.point3D_id]) for p in image.points2D if p.has_point3D() and p.point3D_id in row]
+            tracks[Path(image.name).stem] = (np.array([o[0] for o in obs], np.float64).reshape(-1, 2),
+                                             np.array([o[1] for o in obs], np.int64))
     xyz = np.array([p.xyz for p in pts.values()]).reshape(-1, 3)
     rgb = np.array([p.color for p in pts.values()], np.uint8).reshape(-1, 3)
     stats = {"points3D": int(len(xyz)), "mean_track_length": float(tri.compute_mean_track_length()) if len(xyz) else 0.0,
              "mean_reprojection_error_px": float(tri.compute_mean_reprojection_error()) if len(xyz) else 0.0,
              "matches": int(n_matches)}
-    return xyz, rgb, stats
+    return xyz, rgb, stats, tracks
 
 
 def _umeyama(src: np.ndarray, dst: np.ndarray):
