@@ -269,6 +269,18 @@ def test_sfm_points_lie_on_surfaces(tmp_path):
     for c in cams:
         np.testing.assert_allclose(obs[c.name][0], tracks[c.name][0], atol=1e-5)
         np.testing.assert_allclose(obs[c.name][1], xyz[tracks[c.name][1]], rtol=1e-6, atol=1e-6)
+    # `python -m glint_mi.dataset tracks`: the same triangulation again from the kept sfm/images, written to sparse/0
+    from PIL import Image
+
+    from glint_mi.dataset.__main__ import main as dataset_main
+    (tmp_path / "images").mkdir()
+    for c in cams:
+        Image.open(tmp_path / "sfm" / "images" / f"{c.name}.png").resize((c.width, c.height)).save(
+            tmp_path / "images" / f"{c.name}.png")
+    (tmp_path / "sparse" / "0" / "points3D.txt").write_text("")  # as an old room: no points, no tracks
+    assert dataset_main(["tracks", str(tmp_path)]) == 0
+    again = read_observations(tmp_path)
+    assert abs(sum(len(v[0]) for v in again.values()) - n_obs) <= 0.1 * n_obs
     # distance from each point to the first surface seen from the nearest camera along the line of sight
     errs = []
     for p in xyz:
