@@ -109,7 +109,8 @@ class Dataset:
 
 # ------------------------------------------------------------------ COLMAP
 def _read_colmap_text(folder: Path):
-    cams, images, pts, cols = {}, [], [], []
+    """(cameras, images, points [P,3], colours [P,3], point ids [P], tracks: image name -> (xy [n,2], point ids [n]))."""
+    cams, images, pts, cols, pids, tracks = {}, [], [], [], [], {}
     with open(folder / "cameras.txt") as f:
         for ln, line in enumerate(f, 1):
             if not line.strip() or line.startswith("#"):
@@ -131,22 +132,30 @@ def _read_colmap_text(folder: Path):
         except (IndexError, ValueError):
             raise DatasetError(f"{folder / 'images.txt'}: bad image line '{lines[ln].strip()[:60]}'; expected "
                                f"'ID QW QX QY QZ TX TY TZ CAMERA_ID NAME' followed by a points line.") from None
+        try:
+            a = np.array(lines[ln + 1].split() if ln + 1 < len(lines) else [], np.float64).reshape(-1, 3)
+        except ValueError:
+            raise DatasetError(f"{folder / 'images.txt'}: the points line of image '{images[-1][4]}' is not "
+                               f"'X Y POINT3D_ID' triples.") from None
+        tracks[images[-1][4]] = (a[:, :2], a[:, 2].astype(np.int64))
     p3 = folder / "points3D.txt"
     if p3.exists():
         with open(p3) as f:
             for line in f:
                 if line.strip() and not line.startswith("#"):
                     tok = line.split()
+                    pids.append(int(tok[0]))
                     pts.append([float(t) for t in tok[1:4]])
                     cols.append([int(t) for t in tok[4:7]])
-    return cams, images, np.array(pts).reshape(-1, 3), np.array(cols, np.uint8).reshape(-1, 3)
+    return (cams, images, np.array(pts).reshape(-1, 3), np.array(cols, np.uint8).reshape(-1, 3),
+            np.array(pids, np.int64), tracks)
 
 
 def _read_colmap_binary(folder: Path):
     def rd(f, fmt):
         return struct.unpack("<" + fmt, f.read(struct.calcsize("<" + fmt)))
 
-    cams, images = {}, []
+    cams, images, tracks = {}, [], {}
     with open(folder / "cameras.bin", "rb") as f:
         for _ in range(rd(f, "Q")[0]):
             cid, model, w, h = rd(f, "iiQQ")
@@ -159,17 +168,20 @@ def _read_colmap_binary(folder: Path):
             while (c := f.read(1)) != b"\x00":
                 name += c
             n2 = rd(f, "Q")[0]
-            f.read(24 * n2)
+            rec = np.frombuffer(f.read(24 * n2), dtype=[("x", "<f8"), ("y", "<f8"), ("id", "<i8")])
             images.append((iid, np.array(qt[:4]), np.array(qt[4:]), cid, name.decode()))
-    pts, cols = [], []
+            tracks[name.decode()] = (np.column_stack([rec["x"], rec["y"]]), rec["id"].astype(np.int64))
+    pts, cols, pids = [], [], []
     if (folder / "points3D.bin").exists():
         with open(folder / "points3D.bin", "rb") as f:
             for _ in range(rd(f, "Q")[0]):
-                _, x, y, z, r, g, b, _err, tl = rd(f, "QdddBBBdQ")
+                pid, x, y, z, r, g, b, _err, tl = rd(f, "QdddBBBdQ")
                 f.read(8 * tl)
+                pids.append(pid)
                 pts.append([x, y, z])
                 cols.append([r, g, b])
-    return cams, images, np.array(pts).reshape(-1, 3), np.array(cols, np.uint8).reshape(-1, 3)
+    return (cams, images, np.array(pts).reshape(-1, 3), np.array(cols, np.uint8).reshape(-1, 3),
+            np.array(pids, np.int64), tracks)
 
 
 def colmap_folder(root: Path) -> Path:
@@ -181,52 +193,17 @@ def read_observations(root: Path) -> dict[str, tuple[np.ndarray, np.ndarray]] | 
     [n,2] of its features that triangulated to a 3D point and those points [n,3]. None without a COLMAP model or
     without points3D (a transforms.json dataset)."""
     sparse = colmap_folder(Path(root))
-    obs: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    if (sparse / "images.bin").exists() and (sparse / "points3D.bin").exists():
-        def rd(f, fmt):
-            return struct.unpack("<" + fmt, f.read(struct.calcsize("<" + fmt)))
-
-        xyz = {}
-        with open(sparse / "points3D.bin", "rb") as f:
-            for _ in range(rd(f, "Q")[0]):
-                pid, x, y, z, *_rest, tl = rd(f, "QdddBBBdQ")
-                f.read(8 * tl)
-                xyz[pid] = (x, y, z)
-        raw = []
-        with open(sparse / "images.bin", "rb") as f:
-            for _ in range(rd(f, "Q")[0]):
-                rd(f, "idddddddi")
-                name = b""
-                while (c := f.read(1)) != b"\x00":
-                    name += c
-                n2 = rd(f, "Q")[0]
-                rec = np.frombuffer(f.read(24 * n2), dtype=[("x", "<f8"), ("y", "<f8"), ("id", "<i8")])
-                raw.append((name.decode(), np.column_stack([rec["x"], rec["y"]]), rec["id"]))
-    elif (sparse / "images.txt").exists() and (sparse / "points3D.txt").exists():
-        xyz = {}
-        with open(sparse / "points3D.txt") as f:
-            for line in f:
-                if line.strip() and not line.startswith("#"):
-                    tok = line.split()
-                    xyz[int(tok[0])] = tuple(float(t) for t in tok[1:4])
-        with open(sparse / "images.txt") as f:
-            lines = [line for line in f if not line.startswith("#")]
-        raw = []
-        for ln in range(0, len(lines) - 1, 2):
-            head, pts2d = lines[ln].split(), lines[ln + 1].split()
-            if not head:
-                continue
-            try:
-                a = np.array(pts2d, np.float64).reshape(-1, 3)
-            except ValueError:
-                raise DatasetError(f"{sparse / 'images.txt'}: the points line of image '{' '.join(head[9:])}' is not "
-                                   f"'X Y POINT3D_ID' triples.") from None
-            raw.append((" ".join(head[9:]), a[:, :2], a[:, 2].astype(np.int64)))
+    if (sparse / "cameras.bin").exists() and (sparse / "points3D.bin").exists():
+        _, _, pts, _, pids, tracks = _read_colmap_binary(sparse)
+    elif (sparse / "cameras.txt").exists() and (sparse / "points3D.txt").exists():
+        _, _, pts, _, pids, tracks = _read_colmap_text(sparse)
     else:
         return None
-    for name, xy, ids in raw:
-        keep = np.array([i in xyz for i in ids.tolist()], bool) if len(ids) else np.zeros(0, bool)
-        obs[Path(name).stem] = (xy[keep], np.array([xyz[i] for i in ids[keep].tolist()], np.float64).reshape(-1, 3))
+    row = {int(pid): i for i, pid in enumerate(pids)}
+    obs = {}
+    for name, (xy, ids) in tracks.items():
+        rows = np.array([row.get(int(k), -1) for k in ids], np.int64)
+        obs[Path(name).stem] = (xy[rows >= 0], pts[rows[rows >= 0]].reshape(-1, 3))
     return obs
 
 
@@ -255,9 +232,9 @@ def _find_image(folder: Path, name: str) -> Path | None:
 def load_colmap(root: Path, images_dir: Path | None = None):
     sparse = colmap_folder(root)
     if (sparse / "cameras.bin").exists():
-        cams, images, pts, cols = _read_colmap_binary(sparse)
+        cams, images, pts, cols, _, _ = _read_colmap_binary(sparse)
     elif (sparse / "cameras.txt").exists():
-        cams, images, pts, cols = _read_colmap_text(sparse)
+        cams, images, pts, cols, _, _ = _read_colmap_text(sparse)
     else:
         raise DatasetError(f"{sparse}: no cameras.txt or cameras.bin (expected a COLMAP model in sparse/0).")
     images_dir = images_dir or root / "images"

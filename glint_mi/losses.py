@@ -105,11 +105,9 @@ def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=Non
     if albedo is not None and base is not None:
         low, high, bright = albedo < low_a, albedo > high_a, base > high_b
         m_t = low & bright & behind
-        m_o = valid & (high | (low & ~bright) | same)
+        m_o = (valid & (high | (low & ~bright))) | same  # "same" carries its own validity (depths, or the cue)
     else:
         m_t, m_o = behind, same
-    if cue is not None:
-        m_t, m_o = m_t & (cue > 0), m_o | (cue < 0)
     w = np.ones_like(depth_i, dtype=np.float64)
     if cos_view is not None:
         ang = np.degrees(np.arccos(np.clip(cos_view, -1, 1)))

@@ -181,7 +181,7 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray]:
     if len(image_dirs) != 1 or next(iter(image_dirs)).name != "images":
         log("no SfM points and the images are not in one images/ folder: skipping SfM")
         return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
-    cams = [Camera(v.name, v.c2w, v.width, v.height, v.K[0, 0], v.K[1, 1], v.K[0, 2], v.K[1, 2]) for v in ds.views]
+    cams = [Camera.from_view(v) for v in ds.views]
     try:
         xyz, rgb, stats, _ = triangulate_known_poses(next(iter(image_dirs)).parent, cams)
     except Exception as e:  # pycolmap fails on too few features: say so and fall back

@@ -484,7 +484,7 @@ class Trainer:
         from .dataset.cameras import Camera
         from .dataset.generate import sensor_xml
 
-        cam = Camera(v.name, v.c2w, v.width, v.height, v.K[0, 0], v.K[1, 1], v.K[0, 2], v.K[1, 2])
+        cam = Camera.from_view(v)
         shapes = "\n".join(
             f'        <shape type="glint_gaussians" name="{r}">\n'
             f'            <string name="filename" value="{r}.ply"/>\n'

@@ -469,21 +469,20 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         """
         if adjoint is not None and hit_list is not None:
             return self._replay_list(gs, o0, d, active, total, adjoint, ray_grad, hit_list)
+        listed = slot = None
         if record:
             n_rays = max(dr.width(active), dr.width(o0), dr.width(d))
             slot = dr.arange(mi.UInt32, n_rays) * self.max_hits
             listed = dr.zeros(mi.UInt32, n_rays * self.max_hits)
-        else:  # a scatter under a literal-false mask: Dr.Jit drops it
-            slot, listed = mi.UInt32(0), dr.zeros(mi.UInt32, 1)
         acc, hits, count = self._march_bvh(gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed,
-                                           slot, mi.Bool(record))
+                                           slot)
         if info is not None:
             info["hits"] = hits
             info["list"] = (listed, count) if record else None
         return acc
 
     @dr.syntax
-    def _march_bvh(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot, record):
+    def _march_bvh(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot):
         replay = adjoint is not None
         t_stop = mi.Float(self.transmittance_min)
         if weight is not None:
@@ -502,7 +501,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         step = mi.Float(1.0)
         active = mi.Bool(active)
         while dr.hint(active, mode="evaluated" if ad else "symbolic", label=f"glint {gs.role}",
-                      exclude=[listed, slot, record]):  # read-only or scatter targets, not loop state
+                      exclude=[listed, slot]):  # a scatter target and a read-only index, not loop state
             pi = gs.scene.ray_intersect_preliminary(mi.Ray3f(o, dd), coherent=False, active=active)
             hit = active & pi.is_valid()
             p = o + dd * pi.t
@@ -516,7 +515,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 behind = new & (dr.dot(p - origin, dd) < 0)
                 relevant = ~behind | self._contains(gs, pi.prim_index, origin, behind)
             fresh = new & relevant
-            dr.scatter(listed, pi.prim_index, slot + count, fresh & record)
+            if dr.hint(listed is not None, mode="scalar"):  # recording: no scatter in other kernels
+                dr.scatter(listed, pi.prim_index, slot + count, fresh)
             count = count + mi.UInt32(dr.select(fresh, 1, 0))
             if budget is None:
                 acc, alpha, g_o, g_d = self._hit(gs, pi.prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad)

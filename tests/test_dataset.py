@@ -406,6 +406,7 @@ def test_sfm_observations_text_and_binary(tmp_path):
     ims = [(1, "a.png", [(10.5, 4.0, 7), (3.0, 3.0, -1), (20.0, 8.0, 9)]), (2, "sub/b.jpg", [])]
     txt = tmp_path / "txt" / "sparse" / "0"
     txt.mkdir(parents=True)
+    (txt / "cameras.txt").write_text("1 PINHOLE 32 24 30 30 16 12\n")
     with open(txt / "images.txt", "w") as f:
         f.write("# header\n")
         for iid, name, obs in ims:
@@ -415,6 +416,8 @@ def test_sfm_observations_text_and_binary(tmp_path):
             f.write(f"{pid} {xyz[0]} {xyz[1]} {xyz[2]} 1 2 3 0.5 1 0\n")
     bin_ = tmp_path / "bin" / "sparse" / "0"
     bin_.mkdir(parents=True)
+    (bin_ / "cameras.bin").write_bytes(struct.pack("<Q", 1) + struct.pack("<iiQQ", 1, 1, 32, 24)
+                                       + struct.pack("<4d", 30, 30, 16, 12))
     with open(bin_ / "images.bin", "wb") as f:
         f.write(struct.pack("<Q", len(ims)))
         for iid, name, obs in ims:

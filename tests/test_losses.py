@@ -6,7 +6,7 @@ import pytest
 import drjit as dr
 import mitsuba as mi
 
-from glint_mi.losses import bce, depth_fit, depth_loss, normal_loss, transparency_masks
+from glint_mi.losses import bce, depth_fit, depth_loss, normal_loss, plausibility_weight, transparency_masks
 
 
 def _batch(rng, n_views=3, per=200):
@@ -126,3 +126,28 @@ def test_transparency_off_and_on_glass_metrics():
     m = view_metrics({"rgb": img, "depth": depth, "normal": n, "transparency": t},
                      {"depth": depth, "normal": n, "glass": glass}, img)
     assert np.isclose(m["t_off_glass"], 0.2) and np.isclose(m["t_on_glass"], 0.9)
+
+
+def test_plausibility_weight_reads_the_interface_only():
+    """plausibility_mask: interface pulls G_trans where the interface is a surface, by 1 - t, without gradient."""
+    t, a = mi.Float([0.0, 0.25, 1.0, 0.1]), mi.Float([1.0, 0.8, 0.9, 0.2])
+    dr.enable_grad(t)
+    w = plausibility_weight(t, a, 0.5)
+    np.testing.assert_allclose(np.array(w), [1.0, 0.75, 0.0, 0.0])
+    assert not dr.grad_enabled(w)
+
+
+def test_transparency_masks_with_cue_and_albedo():
+    """With an albedo prior, the cue still decides "behind" / "same": an opaque cue is opaque even where the depths
+    are not valid, a seen-through cue is transparent only for near-black albedo and a bright base colour."""
+    H, W = 12, 16
+    D_I, D_T = np.full((H, W), 2.0), np.full((H, W), 2.0)
+    D_T[:, 12:] = 0                                   # right quarter: no transmission depth
+    cue = np.zeros((H, W), np.int8)
+    cue[:, :6], cue[:, 10:] = 1, -1
+    albedo, base = np.full((H, W), 0.02), np.full((H, W), 0.6)
+    base[:, 3:6] = 0.1                                # dark base: not glass although seen through
+    m_t, m_o = transparency_masks(D_T, D_I, 0.005, albedo=albedo, base=base, cue=cue)
+    assert m_t[1:-1, 1:2].min() == 1 and m_t[:, 3:].max() == 0
+    assert m_o[1:-1, 11:-1].min() == 1                # including where D_T is invalid
+    assert m_o[:, 6:9].max() == 0                     # no evidence: no vote

@@ -29,6 +29,16 @@ class Camera:
     cx: float
     cy: float
 
+    @classmethod
+    def from_view(cls, v) -> "Camera":
+        """The camera of a dataset View (glint_mi.data)."""
+        return cls(v.name, v.c2w, v.width, v.height, v.K[0, 0], v.K[1, 1], v.K[0, 2], v.K[1, 2])
+
+    def scaled(self, s: float) -> "Camera":
+        """The same view with pixels ``1 / s`` as large (an image ``s`` times wider)."""
+        return dataclasses.replace(self, width=round(self.width * s), height=round(self.height * s), fx=self.fx * s,
+                                   fy=self.fy * s, cx=self.cx * s, cy=self.cy * s)
+
     @property
     def fov_x_deg(self) -> float:
         return float(np.degrees(2 * np.arctan(0.5 * self.width / self.fx)))

@@ -244,15 +244,13 @@ def auto_exposure(scene, target: float = 0.2) -> float:
 def sfm_points(scene, folder: Path, cams: list[Camera], mode: str, width: int = 384, spp: int = 128):
     """SfM points for the scene: SIFT on renders at >= ``width`` px (the training images are too small for SIFT),
     triangulated with the known poses; ``mode == 'full'`` also runs SfM without poses and reports its pose error.
-    Returns (xyz, rgb, stats); the SfM images stay in sfm/images."""
-    import dataclasses as dc
-
+    Returns (xyz, rgb, stats, tracks in the cameras' pixels); the SfM images stay in sfm/images."""
     import mitsuba as mi
     from PIL import Image
 
     from glint_mi.data import View
 
-    from .sfm import full_sfm_pose_error, triangulate_known_poses
+    from .sfm import full_sfm_pose_error
 
     scale = max(1, int(np.ceil(width / cams[0].width)))
     fast = mi.load_dict({"type": "path", "max_depth": 6})  # feature matching needs texture, not exact transport
@@ -261,17 +259,25 @@ def sfm_points(scene, folder: Path, cams: list[Camera], mode: str, width: int = 
     big = []
     t0 = time.perf_counter()
     for i, c in enumerate(cams):
-        cs = dc.replace(c, width=c.width * scale, height=c.height * scale, fx=c.fx * scale, fy=c.fy * scale,
-                        cx=c.cx * scale, cy=c.cy * scale)
+        cs = c.scaled(scale)
         sensor = mi.load_dict(View(c.name, Path(""), cs.width, cs.height, cs.K, cs.c2w).sensor_dict(spp))
         rgb = np.array(mi.render(scene, sensor=sensor, integrator=fast, spp=spp, seed=100_000 + i))
         Image.fromarray(np.clip(np.round(linear_to_srgb(rgb) * 255), 0, 255).astype(np.uint8)).save(
             img_dir / f"{c.name}.png")
         big.append(cs)
-    xyz, rgb, stats, tracks = triangulate_known_poses(folder / "sfm", big)
+    xyz, rgb, stats, tracks = _triangulate(folder, cams, scale)
     stats = {"sfm_image_size": [big[0].width, big[0].height], "sfm_render_seconds": time.perf_counter() - t0, **stats}
     if mode == "full":
         stats["full_sfm"] = full_sfm_pose_error(folder / "sfm", big)
+    return xyz, rgb, stats, tracks
+
+
+def _triangulate(folder: Path, cams: list[Camera], scale: float):
+    """Known-pose triangulation on ``folder``/sfm/images (``scale`` x the cameras' resolution); tracks in the
+    cameras' own pixels."""
+    from .sfm import triangulate_known_poses
+
+    xyz, rgb, stats, tracks = triangulate_known_poses(folder / "sfm", [c.scaled(scale) for c in cams])
     return xyz, rgb, stats, {k: (xy / scale, rows) for k, (xy, rows) in tracks.items()}
 
 
@@ -282,8 +288,6 @@ def retriangulate(folder: Path) -> dict:
 
     from glint_mi.data import DatasetError, load_dataset
 
-    from .sfm import triangulate_known_poses
-
     folder = Path(folder)
     ds = load_dataset(folder)
     sfm_dir = folder / "sfm" / "images"
@@ -291,12 +295,9 @@ def retriangulate(folder: Path) -> dict:
         raise DatasetError(f"{sfm_dir}: missing; only scenes generated with --sfm known|full keep their SfM images.")
     with Image.open(sfm_dir / f"{ds.views[0].name}.png") as im:
         scale = im.width / ds.views[0].width
-    cams = [Camera(v.name, v.c2w, v.width, v.height, v.K[0, 0], v.K[1, 1], v.K[0, 2], v.K[1, 2]) for v in ds.views]
-    big = [dataclasses.replace(c, width=round(c.width * scale), height=round(c.height * scale), fx=c.fx * scale,
-                      fy=c.fy * scale, cx=c.cx * scale, cy=c.cy * scale) for c in cams]
-    xyz, rgb, stats, tracks = triangulate_known_poses(folder / "sfm", big)
-    write_colmap_text(folder / "sparse" / "0", cams, (xyz, rgb),
-                      {k: (xy / scale, rows) for k, (xy, rows) in tracks.items()})
+    cams = [Camera.from_view(v) for v in ds.views]
+    xyz, rgb, stats, tracks = _triangulate(folder, cams, scale)
+    write_colmap_text(folder / "sparse" / "0", cams, (xyz, rgb), tracks)
     return {**stats, "observations": int(sum(len(r) for _, r in tracks.values()))}
 
 
