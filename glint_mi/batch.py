@@ -168,7 +168,8 @@ class RayBank:
         surface), an observation more than ``margin`` x its depth behind the prior is seen through (+1), one within
         it is on an opaque surface (-1). Every pixel takes the label of its nearest observation within ``radius`` x
         the image width (0 farther away, or where observations on one pixel disagree). Sets ``self.cue`` [pixels]
-        int8; views without an SfM fit or without tracks stay 0. Returns counts for the run report."""
+        int8; views without an SfM fit or without tracks stay 0; without any labelled view ``self.cue`` is None (the
+        paper's depth-gap rule applies). Returns counts for the run report."""
         from scipy.ndimage import distance_transform_edt
 
         self.cue = np.zeros(self.offsets[-1], np.int8)
@@ -176,6 +177,7 @@ class RayBank:
         if prior is None or self.depth_affine is None or not observations:
             why = ("no depth prior" if prior is None else "the depth prior is not aligned to SfM (depth_align: sfm)"
                    if self.depth_affine is None else "no SfM tracks (a COLMAP model with images and points3D)")
+            self.cue = None  # L_trans keeps the paper's depth-gap rule
             return {"views": 0, "why": why}
         n_t = n_o = used = 0
         for i, v in enumerate(self.views):
@@ -203,7 +205,10 @@ class RayBank:
         share = lambda x: float(np.mean(self.cue == x))
         rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
                "pixels_seen_through": share(1), "pixels_opaque": share(-1), "margin": margin, "radius": radius}
-        return rep if used else {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
+        if not used:  # no evidence anywhere: L_trans keeps the paper's depth-gap rule instead of going silent
+            self.cue = None
+            return {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
+        return rep
 
     @property
     def has(self) -> set[str]:
