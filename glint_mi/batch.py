@@ -172,13 +172,13 @@ class RayBank:
         paper's depth-gap rule applies). Returns counts for the run report."""
         from scipy.ndimage import distance_transform_edt
 
-        self.cue = np.zeros(self.offsets[-1], np.int8)
+        self.cue = None  # until a view has evidence: L_trans keeps the paper's depth-gap rule
         prior = self.priors.get("depth")
         if prior is None or self.depth_affine is None or not observations:
             why = ("no depth prior" if prior is None else "the depth prior is not aligned to SfM (depth_align: sfm)"
                    if self.depth_affine is None else "no SfM tracks (a COLMAP model with images and points3D)")
-            self.cue = None  # L_trans keeps the paper's depth-gap rule
             return {"views": 0, "why": why}
+        cue = np.zeros(self.offsets[-1], np.int8)
         n_t = n_o = used = 0
         for i, v in enumerate(self.views):
             ob = observations.get(v.name)
@@ -200,14 +200,14 @@ class RayBank:
                 continue
             dist, (iy, ix) = distance_transform_edt(acc == 0, return_indices=True)
             lab_map = np.sign(acc[iy, ix]) * (dist <= radius * w)
-            self.cue[self.offsets[i]:self.offsets[i + 1]] = lab_map.ravel().astype(np.int8)
+            cue[self.offsets[i]:self.offsets[i + 1]] = lab_map.ravel().astype(np.int8)
             n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
-        share = lambda x: float(np.mean(self.cue == x))
         rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
-               "pixels_seen_through": share(1), "pixels_opaque": share(-1), "margin": margin, "radius": radius}
-        if not used:  # no evidence anywhere: L_trans keeps the paper's depth-gap rule instead of going silent
-            self.cue = None
+               "pixels_seen_through": float(np.mean(cue == 1)), "pixels_opaque": float(np.mean(cue == -1)),
+               "margin": margin, "radius": radius}
+        if not used:  # an all-zero cue would silence L_trans (no pixel has evidence)
             return {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
+        self.cue = cue
         return rep
 
     @property

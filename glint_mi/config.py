@@ -85,9 +85,10 @@ class TrainConfig:
     #                                      transparent mask shrinks to 0.3 % and components: auto drops G_trans)
     trans_cue: str = "auto"              # L_trans's 3D cue from the SfM tracks (RayBank.see_through_cue): transparent
     #                                      only near features seen behind the depth prior, opaque near features on
-    #                                      it. auto (= sfm with a transmission set; tracks needed, else the paper's
-    #                                      depth gap); none: the paper. With an albedo prior it replaces only the
-    #                                      depth gap (room 7301: t IoU 0.28 -> 0.54, t off glass 0.11 -> 0.18)
+    #                                      it. auto (or sfm, the same): with a transmission set and COLMAP tracks,
+    #                                      else the paper's depth gap; none: the paper. With an albedo prior it
+    #                                      replaces only the depth gap (tuning room 7301: t IoU 0.28 -> 0.54, t off
+    #                                      glass 0.11 -> 0.18)
     cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
@@ -187,7 +188,7 @@ class TrainConfig:
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
         need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
-        need(self.trans_cue in ("auto", "sfm", "none"), "trans_cue", "use auto, sfm or none")
+        need(self.trans_cue in ("auto", "sfm", "none"), "trans_cue", "use auto (sfm is the same) or none")
         need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "
              "alpha compositing, the 3DGS-family baselines)")
         comps = self.components.replace(" ", "")

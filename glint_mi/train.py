@@ -84,7 +84,7 @@ class Trainer:
             self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
             self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
                      f"{len(self.bank.views)} views (the others keep the per-batch fit)")
-        if cfg.trans_cue == "sfm" or (cfg.trans_cue == "auto" and "transmission" in self.sets):
+        if cfg.trans_cue != "none" and "transmission" in self.sets:  # only L_trans and plausibility read it
             from .data import read_observations
 
             cue = self.bank.see_through_cue(read_observations(self.ds.root), cfg.cue_margin, cfg.cue_radius)
