@@ -89,6 +89,10 @@ class TrainConfig:
     #                                      else the paper's depth gap; none: the paper. With an albedo prior it
     #                                      replaces only the depth gap (tuning room 7301: t IoU 0.28 -> 0.54, t off
     #                                      glass 0.11 -> 0.18)
+    t_raise: str = "masks"               # where the objective may raise t: masks = not where L_trans's opaque mask
+    #                                      votes (glint_mi's: off glass a blend of c_I and c_T, two fits of the same
+    #                                      surface, beats either, and the photometric terms made t a veil over the
+    #                                      room); free = wherever the gradient says (the paper)
     cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
@@ -189,6 +193,7 @@ class TrainConfig:
         need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "sfm", "none"), "trans_cue", "use auto (sfm is the same) or none")
+        need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
         need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "
              "alpha compositing, the 3DGS-family baselines)")
         comps = self.components.replace(" ", "")

@@ -205,7 +205,8 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
     switches on, weighted by the config ``c``, on the buffers ``out`` traced for the batch ``b``.
 
     Returns (terms: weighted value per name of LOSS_NAMES, adjoints: per traced buffer, for the integrator's
-    replay, stats: L_trans mask coverage and each component's share of the image energy)."""
+    replay, stats: L_trans mask coverage and each component's share of the image energy, and with ``t_raise:
+    masks`` the rays where t may rise, for the replay)."""
     from .batch import patch_neighbours
     from .render import aligned, floats
 
@@ -219,6 +220,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         depth, normal, t = _leaf(out["depth"]), _leaf(out["normal"]), _leaf(out["transparency"])
         leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
         A = dr.detach(out["alpha"])
+        w_o = None  # L_trans's opaque mask, when this stage computes it
         parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
         if st["consistency"]:
             dist = depth / dr.dot(ray.d, fwd)
@@ -280,6 +282,11 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         adjoints = {}
         for k, v in leaves.items():
             adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
+        if c.t_raise == "masks" and st["trans"] and c.trans_masks == "depth_gap" and w_o is not None:
+            # where L_trans's opaque mask votes, nothing may raise t: off glass a blend of two fits of the same
+            # surface (c_I and the transmission set's c_T) beats either, and the photometric terms would use t as a
+            # mixing weight, a veil over the room (the integrator's backward applies it)
+            stats["t_raise"] = mi.Bool(aligned(w_o <= 0, bool))
         for k, v in parts.items():
             terms[k] = float(v[0]) if dr.width(v) else 0.0
         terms["total"] = float(total[0])
@@ -312,12 +319,19 @@ def batch_transparency_masks(c, b, out: dict, extent: float):
     cue = b.cue.reshape(shape) if b.cue is not None else None
     w_t, w_o = transparency_masks(dT, dI, c.tau_delta * extent, albedo, base, cos, alpha_t=aT, alpha_i=aI,
                                   min_alpha=c.trans_min_alpha, cue=cue)
-    # weight M_t by how much seeing through improves the photometric fit: the pixel at t = 1 (the colour transmitted
-    # from x_I) against the pixel at t = 0 (the interface's own colour), both with the current specular part
+    # weight M_t by how much seeing through improves the photometric fit
+    improve = see_through_gain(b, out).reshape(shape)
+    return (w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32), float(np.mean(w_t > 0))
+
+
+def see_through_gain(b, out: dict) -> np.ndarray:
+    """Per ray, how much seeing through improves the photometric fit (numpy, [M] in [0, 1]): the L1 error of the
+    pixel at t = 1 (the colour transmitted from x_I) against the pixel at t = 0 (the interface's own colour), both
+    with the current specular part; gain = clip((e_0 - e_1) / e_0, 0, 1). It compares the two explanations, not a
+    blend of them, so it is 0 where the transmitted colour is only a second fit of an opaque surface."""
     rows = lambda x: (lambda a: a.T if a.ndim == 2 and a.shape[0] == 3 else a)(np.array(x))
     gt, ks = b.rgb, np.array(out["weights"][1])[:, None]
     spec = ks * rows(out["reflection"])
     e_0 = np.abs((1 - ks) * rows(out["interface"]) + spec - gt).mean(1)
     e_1 = np.abs((1 - ks) * rows(out["transmission"]) + spec - gt).mean(1)
-    improve = np.clip((e_0 - e_1) / np.maximum(e_0, 1e-3), 0.0, 1.0).reshape(shape)
-    return (w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32), float(np.mean(w_t > 0))
+    return np.clip((e_0 - e_1) / np.maximum(e_0, 1e-3), 0.0, 1.0)

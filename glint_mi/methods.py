@@ -43,7 +43,7 @@ METHODS = {m.name: m for m in [
            "surfels with view-dependent appearance",
            "Ref-GS's directional (split-sum) appearance factorisation is replaced by degree-3 SH colour: only the "
            "view dependence is kept"),
-    Method("tsgs", dict(components="interface,transmission", trans_masks="gt", w_plausibility=0.0,
+    Method("tsgs", dict(components="interface,transmission", trans_masks="gt", w_plausibility=0.0, t_raise="free",
                         **NO_PRIORS),
            "surfels with a transparency attribute supervised by transparent masks",
            "masks are the GROUND-TRUTH glass masks (labelled so; TSGS uses image segmentation); the first-surface "
@@ -57,6 +57,9 @@ METHODS = {m.name: m for m in [
     Method("glint-no-normal", dict(w_normal=0.0), "GLINT without L_normal"),
     Method("glint-no-priors", dict(**NO_PRIORS), "GLINT without any geometric (or albedo) prior"),
     Method("glint-no-ltrans", dict(w_trans=0.0), "GLINT without L_trans"),
+    Method("glint-t-free", dict(t_raise="free"),
+           "GLINT with the paper's freedom for t: the photometric terms may raise it wherever their gradient says "
+           "(glint_mi's default lets nothing raise t where L_trans's opaque mask votes)"),
     Method("glint-batch-depth", dict(depth_align="batch"),
            "GLINT with the paper's per-batch scale-shift fit of the depth prior (glint_mi's default fits it once per "
            "view to the SfM points)"),

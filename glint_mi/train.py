@@ -212,7 +212,7 @@ class Trainer:
         with phase("objective"):
             terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent)
         with phase("backward"):
-            self.integ.backward(ray, active, out, adjoints, forward=fwd)
+            self.integ.backward(ray, active, out, adjoints, forward=fwd, t_raise=stats.pop("t_raise", None))
             dr.eval()  # run the replay now (the gradients are read next anyway): its time is the backward's
         with phase("update"):
             self._update(st)

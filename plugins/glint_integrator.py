@@ -692,12 +692,15 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
                 out["_lists"] = tuple(lists)
             return out
 
-    def backward(self, ray: mi.Ray3f, active, out: dict, adjoints: dict, forward=None) -> None:
+    def backward(self, ray: mi.Ray3f, active, out: dict, adjoints: dict, forward=None, t_raise=None) -> None:
         """Path-replay backward: accumulate into the sets' parameter gradients the derivative of
         sum_k <adjoints[k], out[k]>, for ``out`` = :meth:`trace` (primal) of the same rays.
 
         ``adjoints`` maps output names (rgb and AOV group names) to per-ray adjoints shaped like the outputs.
         Memory is independent of the number of hits: every pass is re-traced in a symbolic loop.
+        ``t_raise`` (per ray, optional): where the transparency t may be pushed up; elsewhere a negative adjoint of
+        the interface's t (all terms together: the shading head's and the transparency AOV's) is dropped, so those
+        rays can only lower t (TrainConfig.t_raise).
         """
         forward = self._forward if forward is None else forward
         o, d = mi.Point3f(dr.detach(ray.o)), mi.Vector3f(dr.detach(ray.d))
@@ -716,6 +719,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             res = self._combine(Il, Rl, Trl, R2l, Dl, self._weights(Il, d, active), d, forward, order2)
             dr.backward_from(_adjoint_dot(res, adjoints), flags=flags)
             gI, gR, gTr, gR2, gD = [leaf.grad() for leaf in leaves]
+        if t_raise is not None:
+            gI.Tau = dr.select(mi.Bool(t_raise) | (gI.Tau >= 0), gI.Tau, 0.0)
 
         _, ks, kt, do_r, do_t = self._weights(I, d, active)
         x_i, d_r = self._secondary(I, o, d)

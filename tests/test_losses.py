@@ -151,3 +151,17 @@ def test_transparency_masks_with_cue_and_albedo():
     assert m_t[1:-1, 1:2].min() == 1 and m_t[:, 3:].max() == 0
     assert m_o[1:-1, 11:-1].min() == 1                # including where D_T is invalid
     assert m_o[:, 6:9].max() == 0                     # no evidence: no vote
+
+
+def test_see_through_gain_compares_the_two_explanations():
+    """gain = clip((e_0 - e_1) / e_0, 0, 1): 1 where the transmitted colour alone fits and the interface's does not,
+    0 where the interface fits; a blend of two fits does not count as evidence."""
+    from types import SimpleNamespace
+    from glint_mi.losses import see_through_gain
+    gt = np.array([[0.5, 0.5, 0.5], [0.2, 0.2, 0.2], [0.4, 0.4, 0.4]])
+    b = SimpleNamespace(rgb=gt)
+    out = {"weights": (None, np.zeros(3), None), "reflection": np.zeros((3, 3)),
+           "interface": np.array([[0.9, 0.9, 0.9], [0.2, 0.2, 0.2], [0.5, 0.5, 0.5]]).T,  # channel-major like Dr.Jit
+           "transmission": np.array([[0.5, 0.5, 0.5], [0.6, 0.6, 0.6], [0.3, 0.3, 0.3]]).T}
+    g = see_through_gain(b, out)
+    np.testing.assert_allclose(g, [1.0, 0.0, 0.0], atol=1e-12)  # the third: both off by 0.1, a blend would fit

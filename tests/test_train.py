@@ -505,3 +505,34 @@ def test_sfm_see_through_cue(room, rng):
     assert tr.report["trans_cue"]["views"] == 0 and "why" in tr.report["trans_cue"]
     assert tr.bank.cue is None and tr.bank.sample(rng, 2, 4).cue is None
     assert bank.see_through_cue({}, 0.05, 0.1)["views"] == 0 and bank.cue is None
+
+
+@pytest.mark.parametrize("mode", ["masks", "free"])
+def test_t_raise_follows_the_opaque_mask(room, tmp_path, monkeypatch, mode):
+    """t_raise: masks hands the replay 't may rise' = not in L_trans's opaque mask; free hands nothing (the paper).
+    The trainer passes it to the integrator's backward and does not log it."""
+    tr = Trainer(tmp_path / mode, tiny_cfg(iterations=20, patches=4, components="all", t_raise=mode),
+                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    tr.it = tr.cfg.at(max(tr.cfg.trans_from, tr.cfg.treg_from))
+    assert tr.stage()["trans"]
+    rng = np.random.default_rng(3)
+    seen = {}
+
+    def masks(c, b, out, extent):
+        n = b.patches * b.patch ** 2
+        w_o = (rng.uniform(size=n) < 0.5).astype(np.float32)
+        seen["w_o"] = w_o
+        return np.zeros(n, np.float32), w_o, 0.0
+    monkeypatch.setattr(L, "batch_transparency_masks", masks)
+    backward = tr.integ.backward
+
+    def spy(*a, t_raise=None, **kw):
+        seen["t_raise"] = None if t_raise is None else np.array(t_raise)
+        return backward(*a, t_raise=t_raise, **kw)
+    monkeypatch.setattr(tr.integ, "backward", spy)
+    row = tr.step()
+    assert "t_raise" not in row
+    if mode == "free":
+        assert seen["t_raise"] is None
+    else:
+        np.testing.assert_array_equal(seen["t_raise"], seen["w_o"] <= 0)
