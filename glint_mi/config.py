@@ -89,10 +89,11 @@ class TrainConfig:
     #                                      else the paper's depth gap; none: the paper. With an albedo prior it
     #                                      replaces only the depth gap (tuning room 7301: t IoU 0.28 -> 0.54, t off
     #                                      glass 0.11 -> 0.18)
-    t_raise: str = "masks"               # where the objective may raise t: masks = not where L_trans's opaque mask
-    #                                      votes (glint_mi's: off glass a blend of c_I and c_T, two fits of the same
-    #                                      surface, beats either, and the photometric terms made t a veil over the
-    #                                      room); free = wherever the gradient says (the paper)
+    t_raise: str = "masks"               # where the objective may raise t: masks = from the end of densification,
+    #                                      not where L_trans's opaque mask votes (glint_mi's: off glass a blend of c_I
+    #                                      and c_T, two fits of the same surface, beats either, and once the resets
+    #                                      stop the photometric terms made t a veil over the room); free = wherever
+    #                                      the gradient says (the paper)
     cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5

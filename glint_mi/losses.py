@@ -282,7 +282,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         adjoints = {}
         for k, v in leaves.items():
             adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
-        if c.t_raise == "masks" and st["trans"] and c.trans_masks == "depth_gap" and w_o is not None:
+        if st.get("t_gate") and st["trans"] and c.trans_masks == "depth_gap" and w_o is not None:
             # where L_trans's opaque mask votes, nothing may raise t: off glass a blend of two fits of the same
             # surface (c_I and the transmission set's c_T) beats either, and the photometric terms would use t as a
             # mixing weight, a veil over the room (the integrator's backward applies it)

@@ -509,12 +509,14 @@ def test_sfm_see_through_cue(room, rng):
 
 @pytest.mark.parametrize("mode", ["masks", "free"])
 def test_t_raise_follows_the_opaque_mask(room, tmp_path, monkeypatch, mode):
-    """t_raise: masks hands the replay 't may rise' = not in L_trans's opaque mask; free hands nothing (the paper).
-    The trainer passes it to the integrator's backward and does not log it."""
+    """t_raise: masks hands the replay 't may rise' = not in L_trans's opaque mask, from the end of densification;
+    free hands nothing (the paper). The trainer passes it to the integrator's backward and does not log it."""
     tr = Trainer(tmp_path / mode, tiny_cfg(iterations=20, patches=4, components="all", t_raise=mode),
                  scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
     tr.it = tr.cfg.at(max(tr.cfg.trans_from, tr.cfg.treg_from))
-    assert tr.stage()["trans"]
+    assert tr.stage()["trans"] and not tr.stage()["t_gate"]  # densification: t may rise anywhere
+    tr.it = tr.cfg.at(tr.cfg.densify_until)
+    assert tr.stage()["trans"] and tr.stage()["t_gate"] == (mode == "masks")
     rng = np.random.default_rng(3)
     seen = {}
 
