@@ -220,7 +220,6 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         depth, normal, t = _leaf(out["depth"]), _leaf(out["normal"]), _leaf(out["transparency"])
         leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
         A = dr.detach(out["alpha"])
-        w_o = None  # L_trans's opaque mask, when this stage computes it
         parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
         if st["consistency"]:
             dist = depth / dr.dot(ray.d, fwd)
@@ -262,6 +261,8 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                 w_t, w_o, stats["mask_t"] = batch_transparency_masks(c, b, out, extent)
                 if st["trans"] and c.trans_masks == "depth_gap":
                     parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
+                if st["t_gate"]:  # t_raise: masks - nothing may raise t where the opaque mask votes (the replay)
+                    stats["t_raise"] = mi.Bool(aligned(w_o <= 0, bool))
             if st["plausibility"]:
                 w_p = floats(w_o) if need_masks else plausibility_weight(t, A, c.trans_min_alpha)
                 parts["plausibility"] = c.w_plausibility * plausibility(
@@ -282,11 +283,6 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         adjoints = {}
         for k, v in leaves.items():
             adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
-        if st.get("t_gate") and st["trans"] and c.trans_masks == "depth_gap" and w_o is not None:
-            # where L_trans's opaque mask votes, nothing may raise t: off glass a blend of two fits of the same
-            # surface (c_I and the transmission set's c_T) beats either, and the photometric terms would use t as a
-            # mixing weight, a veil over the room (the integrator's backward applies it)
-            stats["t_raise"] = mi.Bool(aligned(w_o <= 0, bool))
         for k, v in parts.items():
             terms[k] = float(v[0]) if dr.width(v) else 0.0
         terms["total"] = float(total[0])
@@ -327,8 +323,7 @@ def batch_transparency_masks(c, b, out: dict, extent: float):
 def see_through_gain(b, out: dict) -> np.ndarray:
     """Per ray, how much seeing through improves the photometric fit (numpy, [M] in [0, 1]): the L1 error of the
     pixel at t = 1 (the colour transmitted from x_I) against the pixel at t = 0 (the interface's own colour), both
-    with the current specular part; gain = clip((e_0 - e_1) / e_0, 0, 1). It compares the two explanations, not a
-    blend of them, so it is 0 where the transmitted colour is only a second fit of an opaque surface."""
+    with the current specular part; gain = clip((e_0 - e_1) / e_0, 0, 1): L_trans's weight on M_t."""
     rows = lambda x: (lambda a: a.T if a.ndim == 2 and a.shape[0] == 3 else a)(np.array(x))
     gt, ks = b.rgb, np.array(out["weights"][1])[:, None]
     spec = ks * rows(out["reflection"])

@@ -191,9 +191,12 @@ class Trainer:
                 "trans": (has_t or gt_masks) and c.w_trans > 0 and on(c.trans_from),
                 "treg": has_t and c.w_treg > 0 and on(c.treg_from),
                 "plausibility": has_t and c.w_plausibility > 0 and on(c.plausibility_from),
-                # t_raise: masks from the end of densification: until then the opacity / tau resets clear what the
-                # photometric terms build, and their push lets t grow on the glass in the first place
-                "t_gate": has_t and c.t_raise == "masks" and on(c.densify_until),
+                # t_raise: masks, on L_trans's depth-gap masks, from the end of densification: until then the
+                # opacity / tau resets clear what the photometric terms build, and their push lets t grow on the
+                # glass in the first place. Off glass a blend of two fits of one surface (c_I, c_T) beats either,
+                # so the photometric terms would use t as a mixing weight: a veil over the room
+                "t_gate": (has_t and c.t_raise == "masks" and c.trans_masks == "depth_gap" and c.w_trans > 0
+                           and on(max(c.trans_from, c.densify_until))),
                 "sh_degree": min(c.sh_degree, it // c.every(c.sh_every))}
 
     # --------------------------------------------------------- one step
