@@ -94,6 +94,9 @@ class TrainConfig:
     #                                      and c_T, two fits of the same surface, beats either, and once the resets
     #                                      stop the photometric terms made t a veil over the room); free = wherever
     #                                      the gradient says (the paper)
+    t_gate_votes: str = "all"            # which opaque votes close the t_raise: masks gate: all = L_trans's opaque
+    #                                      mask; geometric = without its dark-surface vote (LowA & ~HighB), which
+    #                                      glass with a dark background also casts
     cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
@@ -195,6 +198,7 @@ class TrainConfig:
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "sfm", "none"), "trans_cue", "use auto (sfm is the same) or none")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
+        need(self.t_gate_votes in ("all", "geometric"), "t_gate_votes", "use all (L_trans's opaque mask) or geometric")
         need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "
              "alpha compositing, the 3DGS-family baselines)")
         comps = self.components.replace(" ", "")

@@ -76,7 +76,7 @@ def erode(mask: np.ndarray) -> np.ndarray:
 
 def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=None, cos_view=None,
                        low_a: float = 0.05, high_a: float = 0.10, high_b: float = 0.25, alpha_t=None, alpha_i=None,
-                       min_alpha: float = 0.5, cue=None):
+                       min_alpha: float = 0.5, cue=None, dark_votes: bool = True):
     """L_trans masks of one image (numpy, no gradient): returns (weight_transparent, weight_opaque), [H, W] float.
 
     ``depth_t``/``depth_i``: planar depth of the transmission set (straight from the camera) and of the interface
@@ -92,6 +92,8 @@ def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=Non
     sets does not separate glass from a room (measured on a Cycles room at 400 iterations: "behind" on 85 % of the
     glass pixels and 64 % of the others); the cue's labels are right on 79 % (seen through) and 97 % (opaque) of
     the pixels they cover there.
+    ``dark_votes=False`` leaves the dark-surface vote (LowA & ~HighB) out of the opaque mask: a glass pane has a
+    near-black albedo prior too, and its interface colour is dark wherever what lies behind it is dark.
     Both are eroded 3x3 and weighted by the view angle (1 up to 70 deg, 0 beyond 80 deg, linear between).
     """
     valid = (depth_t > 0) & (depth_i > 0)
@@ -105,7 +107,8 @@ def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=Non
     if albedo is not None and base is not None:
         low, high, bright = albedo < low_a, albedo > high_a, base > high_b
         m_t = low & bright & behind
-        m_o = (valid & (high | (low & ~bright))) | same  # "same" carries its own validity (depths, or the cue)
+        votes = (high | (low & ~bright)) if dark_votes else high
+        m_o = (valid & votes) | same  # "same" carries its own validity (depths, or the cue)
     else:
         m_t, m_o = behind, same
     w = np.ones_like(depth_i, dtype=np.float64)
@@ -258,11 +261,11 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                                                  dr.detach(DA) > 0.5, nb)
             need_masks = st["plausibility"] and c.plausibility_mask == "opaque"
             if (st["trans"] and c.trans_masks == "depth_gap") or need_masks:
-                w_t, w_o, stats["mask_t"] = batch_transparency_masks(c, b, out, extent)
+                w_t, w_o, stats["mask_t"], allowed = batch_transparency_masks(c, b, out, extent, st["t_gate"])
                 if st["trans"] and c.trans_masks == "depth_gap":
                     parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
                 if st["t_gate"]:  # t_raise: masks - nothing may raise t where the opaque mask votes (the replay)
-                    stats["t_raise"] = mi.Bool(aligned(w_o <= 0, bool))
+                    stats["t_raise"] = mi.Bool(aligned(allowed, bool))
             if st["plausibility"]:
                 w_p = floats(w_o) if need_masks else plausibility_weight(t, A, c.trans_min_alpha)
                 parts["plausibility"] = c.w_plausibility * plausibility(
@@ -295,10 +298,11 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
     return terms, adjoints, stats
 
 
-def batch_transparency_masks(c, b, out: dict, extent: float):
+def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False):
     """L_trans masks of the batch (numpy, no gradient) on the p x p patches: (weight_transparent, weight_opaque,
-    coverage), coverage = the share of the batch's pixels in the transparent mask (before the improvement weight;
-    what components: auto reads)."""
+    coverage, gate), coverage = the share of the batch's pixels in the transparent mask (before the improvement
+    weight; what components: auto reads); gate (with ``gate``, else None) = the rays where t may rise under
+    ``t_raise: masks``: outside the opaque mask, read with or without its dark-surface vote (``t_gate_votes``)."""
     _, Dd, _, DA = out["trans_direct"]
     P, p = b.patches, b.patch
     shape = (P, p, p)
@@ -313,11 +317,17 @@ def batch_transparency_masks(c, b, out: dict, extent: float):
     cos = -np.sum(n * b.direction, axis=1).reshape(shape)
     cos = np.where(np.linalg.norm(n, axis=1).reshape(shape) > 0, cos, 1.0)
     cue = b.cue.reshape(shape) if b.cue is not None else None
-    w_t, w_o = transparency_masks(dT, dI, c.tau_delta * extent, albedo, base, cos, alpha_t=aT, alpha_i=aI,
-                                  min_alpha=c.trans_min_alpha, cue=cue)
+    masks = lambda dark: transparency_masks(dT, dI, c.tau_delta * extent, albedo, base, cos, alpha_t=aT, alpha_i=aI,
+                                            min_alpha=c.trans_min_alpha, cue=cue, dark_votes=dark)
+    w_t, w_o = masks(True)
+    allowed = None
+    if gate:
+        g_o = w_o if c.t_gate_votes == "all" else masks(False)[1]
+        allowed = g_o.ravel() <= 0
     # weight M_t by how much seeing through improves the photometric fit
     improve = see_through_gain(b, out).reshape(shape)
-    return (w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32), float(np.mean(w_t > 0))
+    return ((w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32), float(np.mean(w_t > 0)),
+            allowed)
 
 
 def see_through_gain(b, out: dict) -> np.ndarray:

@@ -520,11 +520,11 @@ def test_t_raise_follows_the_opaque_mask(room, tmp_path, monkeypatch, mode):
     rng = np.random.default_rng(3)
     seen = {}
 
-    def masks(c, b, out, extent):
+    def masks(c, b, out, extent, gate):
         n = b.patches * b.patch ** 2
-        w_o = (rng.uniform(size=n) < 0.5).astype(np.float32)
-        seen["w_o"] = w_o
-        return np.zeros(n, np.float32), w_o, 0.0
+        allowed = rng.uniform(size=n) < 0.5
+        seen["allowed"] = allowed
+        return np.zeros(n, np.float32), np.zeros(n, np.float32), 0.0, allowed if gate else None
     monkeypatch.setattr(L, "batch_transparency_masks", masks)
     backward = tr.integ.backward
 
@@ -537,4 +537,4 @@ def test_t_raise_follows_the_opaque_mask(room, tmp_path, monkeypatch, mode):
     if mode == "free":
         assert seen["t_raise"] is None
     else:
-        np.testing.assert_array_equal(seen["t_raise"], seen["w_o"] <= 0)
+        np.testing.assert_array_equal(seen["t_raise"], seen["allowed"])
