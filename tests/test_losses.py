@@ -171,3 +171,31 @@ def test_see_through_gain_compares_the_two_explanations():
            "transmission": np.array([[0.5, 0.5, 0.5], [0.6, 0.6, 0.6], [0.3, 0.3, 0.3]]).T}
     g = see_through_gain(b, out)
     np.testing.assert_allclose(g, [1.0, 0.0, 0.0], atol=1e-12)  # the third: both off by 0.1, a blend would fit
+
+
+@pytest.mark.parametrize("votes", ["all", "geometric"])
+def test_t_gate_reads_the_opaque_votes_it_is_told(votes):
+    """batch_transparency_masks(gate=True): t may rise where the opaque mask does not vote; with t_gate_votes
+    geometric the dark-surface vote (near-black albedo, dark interface colour: also a glass pane in front of a dark
+    background) no longer closes the gate, HighA still does; L_trans's own opaque mask keeps every vote."""
+    from types import SimpleNamespace
+    from glint_mi.config import TrainConfig
+    from glint_mi.losses import batch_transparency_masks
+    p = 8
+    n = p * p
+    albedo = np.full((n, 3), 0.02)
+    albedo.reshape(p, p, 3)[:, 4:] = 0.5                       # right half: HighA
+    b = SimpleNamespace(patches=1, patch=p, albedo_prior=albedo, cue=None, rgb=np.full((n, 3), 0.3),
+                        direction=np.tile([0.0, 0.0, 1.0], (n, 1)))
+    normal = np.tile([[0.0], [0.0], [-1.0]], (1, n))
+    out = {"trans_direct": (None, np.full(n, 3.0), None, np.ones(n)), "depth": np.full(n, 2.0),
+           "alpha": np.ones(n), "interface": np.full((3, n), 0.1), "normal": normal,
+           "weights": (None, np.zeros(n), None), "reflection": np.zeros((3, n)), "transmission": np.zeros((3, n))}
+    cfg = TrainConfig(t_gate_votes=votes)
+    w_t, w_o, cover, allowed = batch_transparency_masks(cfg, b, out, 1.0, gate=True)
+    w_o, allowed = w_o.reshape(p, p), allowed.reshape(p, p)
+    assert cover == 0 and w_o[1:-1, 1:-1].min() == 1            # L_trans: opaque everywhere (dark, or HighA)
+    assert not allowed[1:-1, 5:-1].any()                        # HighA (eroded) closes the gate in both modes
+    dark = allowed[1:-1, 1:3]                                   # the dark vote closes it only with all
+    assert dark.all() if votes == "geometric" else not dark.any()
+    assert batch_transparency_masks(cfg, b, out, 1.0)[3] is None
