@@ -322,7 +322,7 @@ def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False)
     w_t, w_o = masks(True)
     allowed = None
     if gate:
-        g_o = w_o if c.t_gate_votes == "all" else masks(False)[1]
+        g_o = w_o if c.t_gate_votes == "all" or albedo is None else masks(False)[1]  # no prior: no dark vote
         allowed = g_o.ravel() <= 0
     # weight M_t by how much seeing through improves the photometric fit
     improve = see_through_gain(b, out).reshape(shape)
