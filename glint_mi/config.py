@@ -90,10 +90,10 @@ class TrainConfig:
     #                                      replaces only the depth gap (tuning room 7301: t IoU 0.28 -> 0.54, t off
     #                                      glass 0.11 -> 0.18)
     t_raise: str = "masks"               # where the objective may raise t: masks = from the end of densification,
-    #                                      not where L_trans's opaque mask votes (glint_mi's: off glass a blend of c_I
-    #                                      and c_T, two fits of the same surface, beats either, and once the resets
-    #                                      stop the photometric terms made t a veil over the room); free = wherever
-    #                                      the gradient says (the paper)
+    #                                      not where L_trans's opaque mask votes (which votes: t_gate_votes;
+    #                                      glint_mi's: off glass a blend of c_I and c_T, two fits of the same
+    #                                      surface, beats either, and once the resets stop the photometric terms
+    #                                      made t a veil over the room); free = wherever the gradient says (paper)
     t_gate_votes: str = "geometric"      # which opaque votes close the t_raise: masks gate: geometric = L_trans's
     #                                      opaque mask without its dark-surface vote (LowA & ~HighB), which glass
     #                                      with a dark background also casts (tuning room 7301, bench, 5.3 epochs: t

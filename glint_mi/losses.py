@@ -264,7 +264,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                 w_t, w_o, stats["mask_t"], allowed = batch_transparency_masks(c, b, out, extent, st["t_gate"])
                 if st["trans"] and c.trans_masks == "depth_gap":
                     parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
-                if st["t_gate"]:  # t_raise: masks - nothing may raise t where the opaque mask votes (the replay)
+                if st["t_gate"]:  # t_raise: masks - nothing may raise t where the gate's opaque votes fall (replay)
                     stats["t_raise"] = mi.Bool(aligned(allowed, bool))
             if st["plausibility"]:
                 w_p = floats(w_o) if need_masks else plausibility_weight(t, A, c.trans_min_alpha)
