@@ -17,6 +17,21 @@ from . import conventions as cv
 PLY_BASE = ("x", "y", "z", "nx", "ny", "nz")
 # initial values of the paper (glint-method.md section 1), used wherever a value is not given
 INIT_OPACITY, INIT_SPECULAR, INIT_TRANSPARENCY = 0.5, 1e-3, 0.01
+SHELL_EXTENT = float(np.sqrt(2.0 * np.log(255.0)))  # shell radius in standard deviations: alpha of an opaque
+#                                                  Gaussian falls below the 1/255 compositing cut-off there
+MIN_SHELL_FACTOR = 1e-3  # the shell of a Gaussian that never reaches the cut-off (Mitsuba needs a positive scale)
+
+
+def shell_factors(opacity, extent: float = SHELL_EXTENT) -> np.ndarray:
+    """Per Gaussian, the fraction of the ``extent``-sigma shell inside which alpha = opacity x G can reach
+    exp(-extent^2 / 2): sqrt(extent^2 + 2 ln opacity) / extent, clipped to [MIN_SHELL_FACTOR, 1]. Outside it the
+    Gaussian's alpha is below the cut-off that the full shell of an opaque one has (1/255 at the default extent), so
+    the integrator would skip it anyway; a smaller shell only spares the BVH those hits."""
+    o = np.clip(np.asarray(opacity, np.float64).reshape(-1), 1e-300, 1.0)
+    r2 = extent * extent + 2.0 * np.log(o)
+    return np.clip(np.sqrt(np.maximum(r2, 0.0)) / extent, MIN_SHELL_FACTOR, 1.0)
+
+
 EXTRA_FIELDS = ("specular", "transparency")  # logit-valued per-Gaussian extras written after ``opacity``
 
 
@@ -120,12 +135,16 @@ class GaussianSet:
         }
 
     # --------------------------------------------------------- mitsuba pack
-    def to_mitsuba(self, kernel: str = "surfel", min_shell_ratio: float = 0.3) -> dict[str, np.ndarray]:
+    def to_mitsuba(self, kernel: str = "surfel", min_shell_ratio: float = 0.3, opacity_shells: bool = True,
+                   extent: float = SHELL_EXTENT) -> dict[str, np.ndarray]:
         """Arrays for the ``ellipsoids`` shape behind ``glint_gaussians`` (float32, C-contiguous).
 
         ``data`` [N,10] holds centre, *shell* scales and (x,y,z,w) quaternion: the bounding shell Mitsuba's BVH
-        intersects. Its scales are the kernel scales widened so that no axis is thinner than ``min_shell_ratio``
-        times the largest (Mitsuba's float32 ray/ellipsoid test loses hits on flat shells, see README "Limits").
+        intersects (the shape multiplies its scales by ``extent``, in standard deviations). Its scales are the kernel
+        scales widened so that no axis is thinner than ``min_shell_ratio`` times the largest (Mitsuba's float32
+        ray/ellipsoid test loses hits on flat shells, see README "Limits"). With ``opacity_shells`` each shell is
+        also shrunk to where the Gaussian's alpha = opacity x G falls to exp(-extent^2 / 2) (1/255 at the default
+        extent, the compositing cut-off an opaque Gaussian's shell already has): :func:`shell_factors`.
         ``kernel_scales`` [N,3] are the standard deviations the integrator evaluates (a surfel ignores the third, which
         is kept so that files round-trip).
         """
@@ -134,6 +153,8 @@ class GaussianSet:
         axes = ks[:, :2] if kernel == "surfel" else ks
         smax = np.max(axes, axis=1, keepdims=True) if len(self) else np.zeros((0, 1))
         shell = np.maximum(ks, min_shell_ratio * smax)
+        if opacity_shells:
+            shell = shell * shell_factors(a["opacity"], extent)[:, None]
         data = np.concatenate([a["means"], shell, a["quats_xyzw"]], axis=1)
         out = {
             "data": data,

@@ -147,8 +147,9 @@ class Trainer:
         props = {"components": "all", "max_order": self.cfg.max_order,
                  "max_hits": self.cfg.max_hits, "blend": self.cfg.blend,
                  "aovs": "depth,normal,transparency,interface,alpha,weights"}
-        self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, **props))
+        self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, self.cfg.opacity_shells, **props))
         self.integ = self.scene.integrator()
+        self.eval_transmittance_min = self.integ.transmittance_min  # the paper's; training may use a looser one
         self.params = mi.traverse(self.integ)
         self._push()
 
@@ -160,7 +161,7 @@ class Trainer:
         for role, gs in self.sets.items():
             if roles is not None and role not in roles:
                 continue
-            arrays = gs.to_mitsuba(self.cfg.kernel)
+            arrays = gs.to_mitsuba(self.cfg.kernel, opacity_shells=self.cfg.opacity_shells)
             for k in PARAM_KEYS:
                 key = f"{role}.{k}"
                 self.params[key] = floats(arrays[k].ravel())
@@ -206,6 +207,7 @@ class Trainer:
 
         c, st, phase = self.cfg, self.stage(), self.phase
         self.integ.enabled = set(st["traced"])
+        self.integ.transmittance_min = c.train_transmittance_min
         with phase("sample"):
             b = self.bank.sample(self.rng, c.patches, c.patch)
             ray = mi.Ray3f(mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction)))
@@ -408,6 +410,7 @@ class Trainer:
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
         self.integ.enabled = set(self.active_sets())
+        self.integ.transmittance_min = self.eval_transmittance_min
         return self.integ
 
     # ------------------------------------------------------ persistence
@@ -493,7 +496,9 @@ class Trainer:
         shapes = "\n".join(
             f'        <shape type="glint_gaussians" name="{r}">\n'
             f'            <string name="filename" value="{r}.ply"/>\n'
-            f'            <string name="kernel" value="{self.cfg.kernel}"/>\n        </shape>' for r in sets)
+            f'            <string name="kernel" value="{self.cfg.kernel}"/>\n'
+            f'            <boolean name="opacity_shells" value="{str(self.cfg.opacity_shells).lower()}"/>\n'
+            f'        </shape>' for r in sets)
         xml = (f'<scene version="3.0.0">\n    <!-- trained by glint_mi ({self.it} iterations); render with '
                f'mitsuba or python -m glint_mi.evaluate -->\n'
                f'    <integrator type="glint" id="integrator">\n'

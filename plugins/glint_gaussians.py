@@ -26,6 +26,13 @@
  * - min_shell_ratio
    - |float|
    - No shell axis thinner than this fraction of the longest one (BVH proxy only; see README "Limits"). (Default: 0.3)
+ * - opacity_shells
+   - |bool|
+   - Shrink each shell to where opacity x G reaches the cut-off of an opaque Gaussian's shell (exp(-extent^2/2) =
+     1/255): a faint Gaussian is skipped there anyway, and its smaller shell spares the BVH the hits (fewer hits per
+     ray, the hit budget spent on Gaussians that contribute). Shell entry order, which orders the compositing,
+     follows the smaller shells. The shell is set from the opacities given here (or in the trainer's push): after
+     changing ``opacities`` through ``mi.traverse``, rebuild the shape or set ``data`` too. (Default: true)
 
 Mitsuba 3.9.1 cannot subclass ``mi.Shape`` from Python, so the factory returns a configured built-in ``ellipsoids``
 shape and records the set's role and kernel in :data:`SET_INFO`. The ellipsoid ``data`` is the *bounding shell*; the
@@ -40,9 +47,9 @@ import mitsuba as mi
 import numpy as np
 
 from glint_mi import conventions as cv
-from glint_mi.gaussians import GaussianDataError, GaussianSet
+from glint_mi.gaussians import SHELL_EXTENT, GaussianDataError, GaussianSet
 
-DEFAULT_EXTENT = float(np.sqrt(2.0 * np.log(255.0)))
+DEFAULT_EXTENT = SHELL_EXTENT
 
 
 @dataclasses.dataclass
@@ -52,6 +59,7 @@ class SetInfo:
     empty: bool
     source: str
     min_shell_ratio: float
+    opacity_shells: bool
     shape: object = dataclasses.field(repr=False, default=None)  # keeps id(shape) from being reused
 
 
@@ -129,7 +137,8 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
 
 
 def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = None, shape_id: str = "",
-               extent: float = DEFAULT_EXTENT, min_shell_ratio: float = 0.3, source: str = "glint_gaussians"):
+               extent: float = DEFAULT_EXTENT, min_shell_ratio: float = 0.3, opacity_shells: bool = True,
+               source: str = "glint_gaussians"):
     """Instantiate the ``ellipsoids`` shape for a GaussianSet and register its metadata."""
     if kernel not in cv.KERNELS:
         raise ValueError(f"{source}: unknown kernel '{kernel}'; use one of {cv.KERNELS}.")
@@ -138,13 +147,13 @@ def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = Non
     empty = len(gset) == 0
     if empty:  # Mitsuba's ellipsoids cannot hold 0 primitives: one invisible placeholder, skipped by the integrator
         gset = GaussianSet.from_activated(np.zeros((1, 3)), 1e-3, opacities=1e-6, sh_degree=gset.sh_degree)
-    arrays = gset.to_mitsuba(kernel, min_shell_ratio)
+    arrays = gset.to_mitsuba(kernel, min_shell_ratio, opacity_shells, float(extent))
     desc = {"type": "ellipsoids", "extent": float(extent)}
     if shape_id:
         desc["id"] = shape_id
     desc.update({k: mi.TensorXf(v) for k, v in arrays.items()})
     shape = mi.load_dict(desc)
-    SET_INFO[id(shape)] = SetInfo(role, kernel, empty, source, min_shell_ratio, shape)
+    SET_INFO[id(shape)] = SetInfo(role, kernel, empty, source, min_shell_ratio, opacity_shells, shape)
     return shape
 
 
@@ -173,6 +182,7 @@ def _factory(props):
     gset = gaussian_set_from_props(props, source)
     return make_shape(gset, kernel=props.get("kernel", "surfel"), role=role, shape_id=sid or (role or ""),
                       extent=props.get("extent", DEFAULT_EXTENT), min_shell_ratio=props.get("min_shell_ratio", 0.3),
+                      opacity_shells=bool(props.get("opacity_shells", True)),
                       source=source)
 
 

@@ -41,11 +41,11 @@ def test_3dgs_configuration_equals_volprim_rf_basic(rng):
     g = _glassy_set(rng, 400)
     glint = {"type": "glint", "components": "all", "blend": cfg.blend, "aovs": "alpha",
              "alpha_min": 0.0, "alpha_max": 0.9999, "transmittance_min": 0.01,
-             "interface": make_shape(g, cfg.kernel, extent=3.0, min_shell_ratio=0.0)}
+             "interface": make_shape(g, cfg.kernel, extent=3.0, min_shell_ratio=0.0, opacity_shells=False)}
     ref = {"type": "volprim_rf_basic", "srgb_primitives": False, "max_depth": 100000}
     a = render_buffers(mi.load_dict({"type": "scene", "integrator": glint, "sensor": camera(40, 30)}))
     r = np.array(mi.render(mi.load_dict({"type": "scene", "integrator": ref, "sensor": camera(40, 30),
-                                         "g": make_shape(g, cfg.kernel, extent=3.0, min_shell_ratio=0.0)})))[..., :3]
+                                         "g": make_shape(g, cfg.kernel, extent=3.0, min_shell_ratio=0.0, opacity_shells=False)})))[..., :3]
     assert a["alpha"].mean() > 0.3, "test scene should cover the image"
     err = np.abs(a["rgb"] - r).max(-1)
     assert np.mean(err < 1e-4) > 0.95 and np.abs(a["rgb"] - r).mean() < 2e-3, f"mean abs {np.abs(a['rgb'] - r).mean()}"

@@ -82,15 +82,24 @@ def test_quaternion_orders_and_degenerate_quaternions():
 
 def test_mitsuba_packing_round_trip_and_shell(rng):
     g = _set(rng, deg=1)
-    a = g.to_mitsuba("ellipsoid", min_shell_ratio=0.3)
+    a = g.to_mitsuba("ellipsoid", min_shell_ratio=0.3, opacity_shells=False)
     assert a["data"].shape == (50, 10) and a["sh_coeffs"].shape == (50, 12)
     shell = a["data"][:, 3:6]
     assert np.all(shell >= 0.3 * shell.max(axis=1, keepdims=True) * (1 - 1e-6))
     assert np.all(shell >= a["kernel_scales"] * (1 - 1e-6))
+    # opacity shells: scaled by sqrt(E^2 + 2 ln o) / E, so that o exp(-r^2 / 2) at the shell = exp(-E^2 / 2)
+    E = 1.5
+    o = cv.sigmoid(g.logit_opacity)
+    small = g.to_mitsuba("ellipsoid", min_shell_ratio=0.3, extent=E)["data"][:, 3:6].astype(np.float64)
+    r = small[:, 0] / shell[:, 0] * E
+    live = o > np.exp(-E * E / 2)
+    assert live.any() and (~live).any(), "the set should hold Gaussians on both sides of the cut-off"
+    np.testing.assert_allclose(o[live] * np.exp(-0.5 * r[live] ** 2), np.exp(-E * E / 2), rtol=1e-4)
+    np.testing.assert_allclose(small[~live], 1e-3 * shell[~live], rtol=1e-5)  # never reaches it: a tiny shell
     h = GaussianSet.from_mitsuba(a, kernel="ellipsoid")
     np.testing.assert_allclose(h.log_scales, g.log_scales, atol=2e-5)
     np.testing.assert_allclose(cv.sigmoid(h.logit_opacity), cv.sigmoid(g.logit_opacity), atol=1e-6)
-    s = g.to_mitsuba("surfel")  # the thin axis is kept (round trip) but the shell only follows the in-plane axes
+    s = g.to_mitsuba("surfel", opacity_shells=False)  # the thin axis is kept (round trip) but the shell only follows the in-plane axes
     np.testing.assert_allclose(s["kernel_scales"], np.exp(g.log_scales), rtol=1e-6)
     assert np.all(s["data"][:, 5] >= 0.3 * s["kernel_scales"][:, :2].max(1) * (1 - 1e-6))
 

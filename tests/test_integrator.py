@@ -21,11 +21,11 @@ from glint_mi_plugins.glint_gaussians import make_shape
 def test_interface_matches_volprim_rf_basic(rng):
     g = random_set(rng, 400, spread=(1, 1, 1), scale=(0.05, 0.2))
     glint = {"type": "glint", "components": "interface", "aovs": "interface,alpha", "alpha_min": 0.0,
-             "alpha_max": 0.9999, "transmittance_min": 0.01, "interface": make_shape(g, "ellipsoid", extent=3.0, min_shell_ratio=0.0)}
+             "alpha_max": 0.9999, "transmittance_min": 0.01, "interface": make_shape(g, "ellipsoid", extent=3.0, min_shell_ratio=0.0, opacity_shells=False)}
     ref = {"type": "volprim_rf_basic", "srgb_primitives": False, "max_depth": 100000}
     a = render_buffers(mi.load_dict({"type": "scene", "integrator": glint, "sensor": camera()}))
     r = np.array(mi.render(mi.load_dict({"type": "scene", "integrator": ref, "sensor": camera(),
-                                         "g": make_shape(g, "ellipsoid", extent=3.0, min_shell_ratio=0.0)})))
+                                         "g": make_shape(g, "ellipsoid", extent=3.0, min_shell_ratio=0.0, opacity_shells=False)})))
     assert a["alpha"].mean() > 0.3, "test scene should cover the image"
     # volprim advances by a fixed 1e-4 after each hit and so drops Gaussians entered within 1e-4 of the previous
     # one (verified against the brute force below); all other pixels agree to float precision.
@@ -34,19 +34,25 @@ def test_interface_matches_volprim_rf_basic(rng):
     assert np.abs(a["interface"] - r[..., :3]).mean() < 2e-3
 
 
-def _brute_force(gset, o, d, t_min=0.01, alpha_max=0.9999, extent=3.0):
-    """Independent numpy 3DGRT compositing of one ray: shells sorted by entry, kernel at the peak."""
+def _brute_force(gset, o, d, t_min=0.01, alpha_max=0.9999, extent=3.0, alpha_min=0.0, opacity_shells=False):
+    """Independent numpy 3DGRT compositing of one ray: shells sorted by entry, kernel at the peak. With
+    ``opacity_shells`` a Gaussian's shell (in sigmas) is where opacity x G = exp(-extent^2 / 2)."""
     from scipy.spatial.transform import Rotation
     act, hits = gset.activated(), []
     for i in range(len(gset)):
         R, s = Rotation.from_quat(act["quats_xyzw"][i]).as_matrix(), act["scales"][i]
         ol, dl = R.T @ (o - act["means"][i]) / s, R.T @ d / s
-        a, b, c = dl @ dl, ol @ dl, ol @ ol - extent ** 2
+        r2 = extent ** 2 + 2 * np.log(act["opacity"][i]) if opacity_shells else extent ** 2
+        if r2 <= 0:
+            continue
+        a, b, c = dl @ dl, ol @ dl, ol @ ol - r2
         if b * b - a * c < 0 or (-b - np.sqrt(b * b - a * c)) / a < 0:
             continue
         G = np.exp(-0.5 * np.sum((ol - b / a * dl) ** 2))
-        hits.append(((-b - np.sqrt(b * b - a * c)) / a, min(act["opacity"][i] * G, alpha_max),
-                     np.maximum(act["sh"][i, 0] * 0.28209479177387814 + 0.5, 0)))
+        alpha = min(act["opacity"][i] * G, alpha_max)
+        if alpha >= alpha_min:
+            hits.append(((-b - np.sqrt(b * b - a * c)) / a, alpha,
+                         np.maximum(act["sh"][i, 0] * 0.28209479177387814 + 0.5, 0)))
     C, T = np.zeros(3), 1.0
     for _, alpha, col in sorted(hits, key=lambda h: h[0]):
         C, T = C + T * alpha * col, T * (1 - alpha)
@@ -55,16 +61,25 @@ def _brute_force(gset, o, d, t_min=0.01, alpha_max=0.9999, extent=3.0):
     return C
 
 
-def test_interface_matches_brute_force(rng):
+@pytest.mark.parametrize("opacity_shells", [False, True])
+def test_interface_matches_brute_force(rng, opacity_shells):
+    """Without opacity shells at volprim's cut-offs (no alpha floor); with them at the paper's 1/255 floor, which
+    the default 3.33-sigma shell of an opaque Gaussian matches, and opacities down to below the floor."""
     g = random_set(rng, 300, spread=(1, 1, 1), scale=(0.05, 0.2))
+    cut = {"alpha_min": 0.0} if not opacity_shells else {}
+    if opacity_shells:
+        g.logit_opacity[:] = rng.uniform(-7.0, 3.0, len(g))  # opacity 0.001 .. 0.95
     integ = make_integrator({"interface": g}, kernels={"interface": "ellipsoid"}, components="interface",
-                            shape_kw={"min_shell_ratio": 0.0}, alpha_min=0.0, alpha_max=0.9999, transmittance_min=0.01)
+                            shape_kw={"min_shell_ratio": 0.0, "opacity_shells": opacity_shells}, alpha_max=0.9999,
+                            transmittance_min=0.01, **cut)
     o = np.column_stack([rng.uniform(-0.8, 0.8, (40, 2)), np.full(40, -4.0)])
     d = np.column_stack([rng.uniform(-0.1, 0.1, (40, 2)), np.ones(40)])
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     got = to_np(integ.trace(rays(o, d), mi.Bool(True))["interface"]).T
-    want = np.array([_brute_force(g, o[i], d[i], extent=integ.sets["interface"].shape.eval_attribute_1(
-        "extent", dr.zeros(mi.SurfaceInteraction3f), True)[0]) for i in range(len(o))])
+    extent = integ.sets["interface"].shape.eval_attribute_1("extent", dr.zeros(mi.SurfaceInteraction3f), True)[0]
+    want = np.array([_brute_force(g, o[i], d[i], extent=extent, alpha_min=integ.alpha_min,
+                                  opacity_shells=opacity_shells) for i in range(len(o))])
+    assert np.abs(want).max() > 0.1, "the rays should hit Gaussians"
     np.testing.assert_allclose(got, want, atol=1e-4)
 
 
