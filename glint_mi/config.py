@@ -44,9 +44,6 @@ class TrainConfig:
     max_hits: int = 64                   # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget")
     opacity_shells: bool = True          # each Gaussian's BVH shell ends where its alpha reaches the 1/255 cut-off
     #                                      (glint_gaussians' opacity_shells); false: 3.33 sigma for every opacity
-    train_transmittance_min: float = 1e-4  # training rays stop compositing once T falls below this (the paper's
-    #                                      1e-4); a looser cut-off is a speed / accuracy trade (fewer hits per ray).
-    #                                      Evaluation and the saved scene.xml always use the paper's 1e-4
     blend: str = "fresnel"               # fresnel (GLINT) | envgs: (1 - beta) c_I + beta c_R | alpha: plain compositing
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
     trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | gt (ground-truth glass masks; TSGS baseline)
@@ -192,8 +189,6 @@ class TrainConfig:
         need(isinstance(self.epochs, (int, float)) and self.epochs >= 0, "epochs",
              "must be >= 0 (rays per training pixel; 0 = use iterations)")
         need(self.patches >= 1, "patches", "must be >= 1")
-        need(isinstance(self.train_transmittance_min, (int, float)) and 0 <= self.train_transmittance_min < 1,
-             "train_transmittance_min", "must be in [0, 1) (the paper: 1e-4)")
         need(isinstance(self.train_downsample, int) and self.train_downsample >= 1, "train_downsample",
              "must be an integer >= 1 (2 = train on half-resolution images)")
         need(self.patch >= 3, "patch", "must be >= 3 (D-SSIM and normal consistency work on patches)")

@@ -149,7 +149,6 @@ class Trainer:
                  "aovs": "depth,normal,transparency,interface,alpha,weights"}
         self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, self.cfg.opacity_shells, **props))
         self.integ = self.scene.integrator()
-        self.eval_transmittance_min = self.integ.transmittance_min  # the paper's; training may use a looser one
         self.params = mi.traverse(self.integ)
         self._push()
 
@@ -207,7 +206,6 @@ class Trainer:
 
         c, st, phase = self.cfg, self.stage(), self.phase
         self.integ.enabled = set(st["traced"])
-        self.integ.transmittance_min = c.train_transmittance_min
         with phase("sample"):
             b = self.bank.sample(self.rng, c.patches, c.patch)
             ray = mi.Ray3f(mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction)))
@@ -410,7 +408,6 @@ class Trainer:
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
         self.integ.enabled = set(self.active_sets())
-        self.integ.transmittance_min = self.eval_transmittance_min
         return self.integ
 
     # ------------------------------------------------------ persistence

@@ -404,27 +404,21 @@ def test_eval_every_writes_a_convergence_curve(room, tmp_path):
     assert np.isclose(float(rows[-1]["epoch"]), 20 * 256 / tr.train_pixels)
 
 
-def test_training_cut_offs_stay_out_of_evaluation(room, tmp_path):
-    """train_transmittance_min is the training rays' cut-off only (evaluation keeps the paper's 1e-4), and
-    opacity_shells reaches the trained shapes, the trainer's pushes, the saved scene.xml and load_run."""
+def test_opacity_shells_option_reaches_every_shape(room, tmp_path):
+    """opacity_shells reaches the trained shapes, the trainer's pushes, the saved scene.xml and load_run."""
     from glint_mi.evaluate import load_run
     from glint_mi_plugins.glint_gaussians import info
 
-    tr = Trainer(tmp_path / "c", tiny_cfg(iterations=3, patches=4, train_transmittance_min=0.05, opacity_shells=False),
+    tr = Trainer(tmp_path / "c", tiny_cfg(iterations=3, patches=4, opacity_shells=False),
                  scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
-    seen, trace = [], tr.integ.trace
-    tr.integ.trace = lambda *a, **k: (seen.append(tr.integ.transmittance_min), trace(*a, **k))[1]
     tr.train(progress=False)
-    assert seen and set(seen) == {0.05}
-    assert tr.integ_for_eval().transmittance_min == pytest.approx(1e-4)
     g = tr.sets["interface"]
     full = g.to_mitsuba(tr.cfg.kernel, opacity_shells=False)["data"]
+    assert not np.allclose(g.to_mitsuba(tr.cfg.kernel)["data"], full), "the default shells should differ"
     np.testing.assert_allclose(np.array(tr.params["interface.data"]).reshape(-1, 10), full, rtol=1e-6)
     assert 'name="opacity_shells" value="false"' in (tmp_path / "c" / "model" / "scene.xml").read_text()
     integ, *_ = load_run(tmp_path / "c")
     assert not info(integ.sets["interface"].shape).opacity_shells
-    with pytest.raises(ConfigError, match="train_transmittance_min"):
-        tiny_cfg(train_transmittance_min=1.0).validate()
 
 
 def test_config_saved_before_epochs_keeps_its_iterations(tmp_path):
