@@ -250,7 +250,7 @@ PRESETS = {
     # quick: 15 epochs = the 800 iterations x 2048 rays that the bundled 96 x 54 room (21 training views) had
     "quick": dict(iterations=800, epochs=15.0, patches=32, patch=8, sh_degree=1, grid_n=12, grid_k=2, init_min_points=3000,
                   max_gaussians=15000, densify_every=0.05, reset_every=0.15, lr_multiplier=2.0),
-    # bench: 10 epochs ~ 30 min of GLINT on a 48-view 192 x 108 room on 2 cores (~5k rays/s)
+    # bench: 10 epochs = 14 min of GLINT on the 48-view 192 x 108 tuning room 7301 on 2 cores (opacity shells)
     "bench": dict(iterations=4000, epochs=10.0, patches=48, patch=8, sh_degree=1, grid_n=16, grid_k=2, init_min_points=6000,
                   max_gaussians=40000, checkpoint_every=500, densify_every=0.025, reset_every=0.1,
                   lr_multiplier=1.5),
