@@ -278,7 +278,8 @@ def test_cli_scene_optimize_evaluate(room, tmp_path):
     import csv
     rows = list(csv.DictReader(open(run / "log.csv")))
     l1 = np.array([float(x["l1"]) for x in rows])
-    assert l1[-20:].mean() < 0.7 * l1[:10].mean()
+    # against the first steps' loss (with opacity shells the first ten steps already halve it: 0.17 -> 0.08)
+    assert l1[-20:].mean() < 0.7 * l1[:3].mean()
     m = json.loads((run / "metrics.json").read_text())["metrics"]
     # the initialisation's metrics, from the same scene: trained must beat them
     from glint_mi.evaluate import evaluate
