@@ -32,7 +32,9 @@
      1/255): a faint Gaussian is skipped there anyway, and its smaller shell spares the BVH the hits (fewer hits per
      ray, the hit budget spent on Gaussians that contribute). Shell entry order, which orders the compositing,
      follows the smaller shells. The shell is set from the opacities given here (or in the trainer's push): after
-     changing ``opacities`` through ``mi.traverse``, rebuild the shape or set ``data`` too. (Default: true)
+     changing ``opacities`` through ``mi.traverse``, rebuild the shape or set ``data`` too. With an integrator
+     ``alpha_min`` below exp(-extent^2/2) (volprim's cut-offs: 0) the faint tails it would composite lie outside
+     these shells: set ``false`` there. (Default: true)
 
 Mitsuba 3.9.1 cannot subclass ``mi.Shape`` from Python, so the factory returns a configured built-in ``ellipsoids``
 shape and records the set's role and kernel in :data:`SET_INFO`. The ellipsoid ``data`` is the *bounding shell*; the
