@@ -157,8 +157,7 @@ def load_run(run: str | Path):
 
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
     scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components="all",
-                                             max_order=cfg.max_order,
-                                         max_hits=cfg.max_hits, blend=cfg.blend))
+                                             max_order=cfg.max_order, max_hits=cfg.max_hits, blend=cfg.blend))
     ckpt = run / "checkpoint.npz"
     train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None
     return scene.integrator(), ds, cfg, train_s

@@ -154,13 +154,14 @@ class Trainer:
 
     def _push(self, roles=None):
         """Send the sets' current values (and sizes) to the renderer; a `data` change rebuilds that set's BVH, so
-        only ``roles`` (default all) are sent."""
+        only ``roles`` (default all) are sent, packed as each shape was made (its opacity shells included)."""
         import drjit as dr
+        from glint_mi_plugins.glint_gaussians import pack
 
         for role, gs in self.sets.items():
             if roles is not None and role not in roles:
                 continue
-            arrays = gs.to_mitsuba(self.cfg.kernel, opacity_shells=self.cfg.opacity_shells)
+            arrays = pack(self.integ.sets[role].shape, gs)
             for k in PARAM_KEYS:
                 key = f"{role}.{k}"
                 self.params[key] = floats(arrays[k].ravel())

@@ -51,8 +51,6 @@ import numpy as np
 from glint_mi import conventions as cv
 from glint_mi.gaussians import SHELL_EXTENT, GaussianDataError, GaussianSet
 
-DEFAULT_EXTENT = SHELL_EXTENT
-
 
 @dataclasses.dataclass
 class SetInfo:
@@ -62,6 +60,7 @@ class SetInfo:
     source: str
     min_shell_ratio: float
     opacity_shells: bool
+    extent: float
     shape: object = dataclasses.field(repr=False, default=None)  # keeps id(shape) from being reused
 
 
@@ -139,7 +138,7 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
 
 
 def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = None, shape_id: str = "",
-               extent: float = DEFAULT_EXTENT, min_shell_ratio: float = 0.3, opacity_shells: bool = True,
+               extent: float = SHELL_EXTENT, min_shell_ratio: float = 0.3, opacity_shells: bool = True,
                source: str = "glint_gaussians"):
     """Instantiate the ``ellipsoids`` shape for a GaussianSet and register its metadata."""
     if kernel not in cv.KERNELS:
@@ -155,8 +154,15 @@ def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = Non
         desc["id"] = shape_id
     desc.update({k: mi.TensorXf(v) for k, v in arrays.items()})
     shape = mi.load_dict(desc)
-    SET_INFO[id(shape)] = SetInfo(role, kernel, empty, source, min_shell_ratio, opacity_shells, shape)
+    SET_INFO[id(shape)] = SetInfo(role, kernel, empty, source, min_shell_ratio, opacity_shells, float(extent), shape)
     return shape
+
+
+def pack(shape, gset: GaussianSet) -> dict[str, np.ndarray]:
+    """``gset`` as the arrays of ``shape``'s parameters, packed as the shape was made (kernel, shell ratio,
+    opacity shells, extent): what to send through ``mi.traverse`` when a set changes."""
+    meta = info(shape)
+    return gset.to_mitsuba(meta.kernel, meta.min_shell_ratio, meta.opacity_shells, meta.extent)
 
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
@@ -183,7 +189,7 @@ def _factory(props):
     source = f"glint_gaussians '{sid or role or '?'}'"
     gset = gaussian_set_from_props(props, source)
     return make_shape(gset, kernel=props.get("kernel", "surfel"), role=role, shape_id=sid or (role or ""),
-                      extent=props.get("extent", DEFAULT_EXTENT), min_shell_ratio=props.get("min_shell_ratio", 0.3),
+                      extent=props.get("extent", SHELL_EXTENT), min_shell_ratio=props.get("min_shell_ratio", 0.3),
                       opacity_shells=bool(props.get("opacity_shells", True)),
                       source=source)
 

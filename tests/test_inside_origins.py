@@ -21,14 +21,19 @@ from glint_mi.gaussians import GaussianSet
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1 / 255, 0.99, 1e-4
 
 
-def brute_force(gset: GaussianSet, kernel: str, o, d, extent: float):
-    """(colour [3], alpha, expected distance, shells holding the origin) of one ray, in float64."""
-    arr = gset.to_mitsuba(kernel)
+def brute_force(gset: GaussianSet, kernel: str, o, d, extent: float, opacity_shells: bool = True):
+    """(colour [3], alpha, expected distance, shells holding the origin) of one ray, in float64. The shell is the
+    full one of the packing (min_shell_ratio) shrunk here, not by the code under test, to where opacity x G =
+    exp(-extent^2 / 2) when ``opacity_shells`` (the shapes' default)."""
+    arr = gset.to_mitsuba(kernel, opacity_shells=False)
     act = gset.activated()
     hits, around = [], 0
     for i in range(len(gset)):
         R = Rotation.from_quat(arr["data"][i, 6:10]).as_matrix()
-        c, shell, ks = act["means"][i], arr["data"][i, 3:6].astype(np.float64) * extent, act["scales"][i]
+        r2 = extent ** 2 + 2 * np.log(act["opacity"][i]) if opacity_shells else extent ** 2
+        if r2 <= 0:
+            continue  # never reaches the cut-off: no contribution (its shell is a speck)
+        c, shell, ks = act["means"][i], arr["data"][i, 3:6].astype(np.float64) * np.sqrt(r2), act["scales"][i]
         ol, dl = R.T @ (o - c), R.T @ d
         a, b, cc = np.sum((dl / shell) ** 2), np.sum(ol * dl / shell ** 2), np.sum((ol / shell) ** 2) - 1.0
         disc = b * b - a * cc
