@@ -96,6 +96,9 @@ def write_results(rows: list[dict], out: Path, header: str = "") -> str:
     from .train import atomic_write_text
 
     keys = ["method", "scene", "seed", *COLUMNS]
+    # Round once, to the CSV's 6 digits, and build the table from those values: rounding the raw value to the
+    # table's 4 digits could differ from rounding the CSV's (12.26499 -> 12.26, but 12.265 -> 12.27).
+    rows = [{k: (float(f"{v:.6g}") if isinstance(v, float) else v) for k, v in r.items()} for r in rows]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
     w.writeheader()

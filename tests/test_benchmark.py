@@ -75,6 +75,17 @@ def test_results_with_seeds_give_mean_and_spread(tmp_path):
     assert "standard deviation" not in one and "| glint | 10 |" in one
 
 
+def test_table_shows_the_csv_numbers(tmp_path):
+    """The table is rounded from the CSV's values, not from the raw ones: a value whose 4-digit rounding differs
+    between the two (12.264996 -> CSV 12.265 -> 12.27, raw -> 12.26) failed a CI run."""
+    from glint_mi.benchmark import COLUMNS, write_results
+
+    write_results([{"method": "m", "scene": "s", "seed": 0, **{c: 12.264996 for c in COLUMNS}}], tmp_path)
+    got = float(next(csv.DictReader(open(tmp_path / "results.csv")))["fps"])
+    assert got == 12.265
+    assert f"| m | {got:.4g} |" in (tmp_path / "table.md").read_text()
+
+
 def test_mesh_reference_trade_error_falls_with_spp():
     """path's error against the high-spp reference must fall with spp (a warm-up render once left every timed render
     at 1 spp), and time must grow with it."""
