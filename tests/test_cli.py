@@ -51,6 +51,22 @@ def test_benchmark_script_runs(tmp_path):
         assert f"| {row['config']} | {float(row['forward_ms']):.1f} |" in r.stdout
 
 
+def test_pass_breakdown_script_runs():
+    """benchmarks/bench_passes.py: one row per pass and walk-back setting; the walk back composites the shells that
+    hold x_I (more reflection hits with it than without), and the lane-efficiency formula on a known case."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_passes import lane_efficiency
+    assert lane_efficiency([1, 1, 1, 3], 4) == 0.5 and lane_efficiency([2, 2, 0, 0, 5], 2) == 9 / 14
+    r = subprocess.run([sys.executable, "benchmarks/bench_passes.py", "--gaussians", "300", "--res", "32x24"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=900)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split("|")[1:-1] for line in r.stdout.splitlines() if line.startswith("| ") and "---" not in line]
+    table = {(c[0].strip(), c[1].strip()): c for c in rows[1:]}
+    assert set(table) == {(p, w) for p in ("camera", "reflection", "transmission") for w in ("on", "off")}
+    assert float(table["reflection", "on"][4]) > float(table["reflection", "off"][4])
+    assert "shuffled" in table["camera", "on"][6] and "sum of passes / camera pass" in r.stdout
+
+
 def test_readme_python_tour_runs():
     """The README's Python blocks run as written (from the repository root)."""
     import os
