@@ -12,6 +12,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[dev]'
 	$(PY) -m glint_mi.setup_llvm
+	$(PY) -m glint_mi.native
 	@touch $(STAMP)
 
 demo: $(STAMP)

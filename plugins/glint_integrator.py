@@ -64,6 +64,18 @@ and the same transport as a first-order reference on mesh scenes with real glass
      kernel counted where it lies ahead of the origin): each pass starts its BVH walk one shell diameter behind the
      origin. ``false``: Mitsuba's shell test alone, which never reports a shell around the origin (such Gaussians
      are invisible; kept to measure what the walk back costs).
+ * - traversal
+   - |string|
+   - How each pass finds the shells along a ray. ``kbuffer``: the native traversal of :mod:`glint_mi.native`
+     (Embree, as shipped in the mitsuba wheel, built with the system C++ compiler): one traversal lists a ray's
+     next ``kbuffer_k`` shell entries in order, shells that hold the origin first. ``bvh``: one Mitsuba
+     ``ray_intersect_preliminary`` from the BVH root per hit, walking back one shell diameter behind the origin
+     (the plain-AD path ``gradient=ad`` and CUDA variants always use it). ``auto`` (default): kbuffer when the
+     library is built and the variant is LLVM, else bvh. Both composite in order of shell entry; they differ only
+     where float32 shell tests disagree (tested against each other and a float64 brute force).
+ * - kbuffer_k
+   - |int|
+   - Shell entries listed per traversal (a round); rays still going take another round. (Default: 16)
  * - max_depth
    - |int|
    - Mesh mode: path depth of the ``path`` tracer that gives radiance beyond the glass. (Default: 64)
@@ -92,6 +104,7 @@ import mitsuba as mi
 import numpy as np
 
 from glint_mi import conventions as cv
+from glint_mi import native
 
 from . import glint_gaussians
 
@@ -130,6 +143,13 @@ class GaussianSetRef:
         data = np.array(params["data"], np.float64).reshape(-1, 10)
         reach = 2.0 * float(params["extent"]) * float(data[:, 3:6].max(initial=0.0)) if len(data) else 0.0
         self.reach = dr.opaque(mi.Float, reach * (1.0 + 1e-3) + 1e-6)
+        self._shells, self._data, self._extent = None, data, float(params["extent"])
+
+    def native(self) -> "native.ShellSet":
+        """The set's shells in the native k-buffer traversal's Embree scene (built on first use after a change)."""
+        if self._shells is None:
+            self._shells = native.ShellSet(self._data, self._extent)
+        return self._shells
 
 
 class Composite:
@@ -232,6 +252,13 @@ def _ray_epsilon(p):
     return dr.maximum(1e-6, dr.max(dr.abs(p)) * 1e-6)
 
 
+def _widen(x, n: int):
+    """``x`` (a Dr.Jit array or struct) with ``n`` entries: a width-1 value is broadcast."""
+    if dr.width(x) == n:
+        return x
+    return dr.gather(type(x), x, dr.zeros(mi.UInt32, n))
+
+
 class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
     def __init__(self, props):
         super().__init__(props)
@@ -254,6 +281,20 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         self.alpha_max = float(props.get("alpha_max", ALPHA_MAX))
         self.transmittance_min = float(props.get("transmittance_min", T_MIN))
         self.inside_origins = bool(props.get("inside_origins", True))
+        traversal = str(props.get("traversal", "auto"))
+        if traversal not in ("auto", "kbuffer", "bvh"):
+            raise ValueError(f"glint: 'traversal' must be auto, kbuffer or bvh (got '{traversal}').")
+        self.kbuffer_k = int(props.get("kbuffer_k", 64))
+        if self.kbuffer_k < 1:
+            raise ValueError(f"glint: 'kbuffer_k' must be >= 1 (got {self.kbuffer_k}).")
+        self.kbuffer = False
+        if traversal != "bvh":
+            why = native.why_not() or ("" if mi.variant().startswith("llvm") else
+                                       f"variant {mi.variant()} (its arrays are not in host memory)")
+            if why and traversal == "kbuffer":
+                raise ValueError(f"glint: traversal=kbuffer is unavailable: {why}. Use traversal=bvh, or build it "
+                                 f"with `python -m glint_mi.native`.")
+            self.kbuffer = not why and self.inside_origins  # without inside origins: Mitsuba's shell test, as it was
         if not (0.0 <= self.alpha_min < self.alpha_max < 1.0 and 0.0 <= self.transmittance_min < 1.0):
             raise ValueError("glint: need 0 <= alpha_min < alpha_max < 1 and 0 <= transmittance_min < 1.")
         legacy = "fresnel" if bool(props.get("fresnel", True)) else "envgs"
@@ -474,8 +515,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             n_rays = max(dr.width(active), dr.width(o0), dr.width(d))
             slot = dr.arange(mi.UInt32, n_rays) * self.max_hits
             listed = dr.zeros(mi.UInt32, n_rays * self.max_hits)
-        acc, hits, count = self._march_bvh(gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed,
-                                           slot)
+        march = self._march_kbuffer if (self.kbuffer and not ad) else self._march_bvh
+        acc, hits, count = march(gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot)
         if info is not None:
             info["hits"] = hits
             info["list"] = (listed, count) if record else None
@@ -530,6 +571,63 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             hits += mi.UInt32(dr.select(relevant, 1, 0))
             active = hit & (T > t_stop) & (hits < (self.max_hits if budget is None else budget))
         return ((d_o, d_d) if replay else acc), hits, count
+
+    def _march_kbuffer(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot):
+        """:meth:`_march_bvh` with the native k-buffer traversal (``traversal``: kbuffer): rounds of one Embree
+        traversal per ray that lists its next ``kbuffer_k`` shell entries in order (shells that hold the origin
+        first: no walk back), each followed by a Dr.Jit loop that composites them with the same arithmetic and the
+        same stopping rule (T <= t_stop or the hit budget). Rays still going after a full buffer take another round."""
+        replay = adjoint is not None
+        n = max(dr.width(x) for x in (active, o0, d))
+        t_stop = mi.Float(self.transmittance_min)
+        if weight is not None:
+            t_stop = dr.minimum(self.transmittance_min / dr.maximum(dr.detach(weight), self.transmittance_min), 1.0)
+        origin, dd = _widen(mi.Point3f(dr.detach(o0)), n), _widen(mi.Vector3f(dr.detach(d)), n)
+        active = _widen(mi.Bool(active), n)
+        t_stop = _widen(t_stop, n)
+        dr.eval(origin, dd, active, t_stop)
+        xyz = lambda v: np.stack([np.asarray(v.x), np.asarray(v.y), np.asarray(v.z)], axis=1)
+        O, D, go = xyz(origin), xyz(dd), np.asarray(active, dtype=bool).copy()
+        shells, k = gs.native(), self.kbuffer_k
+        T, acc = dr.full(mi.Float, 1.0, n), _widen(Composite(), n)
+        d_o, d_d = dr.zeros(mi.Vector3f, n), dr.zeros(mi.Vector3f, n)
+        hits, count = dr.zeros(mi.UInt32, n), dr.zeros(mi.UInt32, n)
+        t_prev, p_prev = np.full(n, -np.inf, np.float32), np.full(n, 0xFFFFFFFF, np.uint32)
+        rows = np.arange(n)
+        while go.any():
+            prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count())
+            T, acc, d_o, d_d, hits, count, more = self._kbuffer_round(
+                gs, mi.UInt32(prims.ravel()), mi.UInt32(cnt), k, o0, d, t_stop, total, adjoint, ray_grad, budget,
+                listed, slot, T, acc, d_o, d_d, hits, count)
+            dr.eval(T, acc, d_o, d_d, hits, count, more, listed)
+            last = np.maximum(cnt.astype(np.int64) - 1, 0)
+            t_prev = np.where(cnt > 0, ts[rows, last], t_prev)
+            p_prev = np.where(cnt > 0, prims[rows, last], p_prev)
+            go &= (cnt == k) & np.asarray(more, dtype=bool)
+        return ((d_o, d_d) if replay else acc), hits, count
+
+    @dr.syntax
+    def _kbuffer_round(self, gs, prims, cnt, k_max, o0, d, t_stop, total, adjoint, ray_grad, budget, listed, slot,
+                       T, acc, d_o, d_d, hits, count):
+        """Composite one round's listed entries (``prims`` [rays x k_max], ``cnt`` per ray) in order."""
+        limit = self.max_hits if budget is None else budget
+        base = dr.arange(mi.UInt32, dr.width(cnt)) * k_max
+        k = mi.UInt32(0)
+        active = (k < cnt) & (T > t_stop) & (hits < limit)
+        while dr.hint(active, mode="symbolic", label=f"glint {gs.role} k-buffer", exclude=[listed, slot]):
+            prim = dr.gather(mi.UInt32, prims, base + k, active)
+            if dr.hint(listed is not None, mode="scalar"):  # recording: no scatter in other kernels
+                dr.scatter(listed, prim, slot + count, active)
+            count += mi.UInt32(dr.select(active, 1, 0))
+            if budget is None:
+                acc, alpha, g_o, g_d = self._hit(gs, prim, o0, d, active, T, acc, total, adjoint, ray_grad)
+                d_o += g_o
+                d_d += g_d
+                T *= 1.0 - alpha
+            hits += mi.UInt32(dr.select(active, 1, 0))
+            k += 1
+            active &= (k < cnt) & (T > t_stop) & (hits < limit)
+        return T, acc, d_o, d_d, hits, count, (T > t_stop) & (hits < limit)
 
     @dr.syntax
     def _replay_list(self, gs: GaussianSetRef, o0, d, active, total, adjoint, ray_grad, hit_list):

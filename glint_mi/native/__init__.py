@@ -1,0 +1,111 @@
+"""The native k-buffer traversal (``kbuffer.cpp``): per ray, the next K bounding-shell entries of a Gaussian set from
+one Embree traversal, in order, shells around the origin included.
+
+Built with the system C++ compiler against the Embree headers and library that ship in the mitsuba wheel
+(``python -m glint_mi.native``; ``make`` runs it). :func:`load` returns the library, building it on first use when
+it is missing or older than its source, or None (with :func:`why_not` saying why) when it cannot be built: the
+integrator then traverses with Mitsuba's BVH queries instead (same image model, slower).
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SOURCE = HERE / "kbuffer.cpp"
+LIBRARY = HERE / "libglint_kbuffer.so"
+_lib = None
+_why = ""
+
+
+def _mitsuba_dir() -> Path:
+    import mitsuba
+    return Path(mitsuba.__file__).resolve().parent
+
+
+def build(verbose: bool = False) -> Path:
+    """Compile kbuffer.cpp into LIBRARY (atomically: concurrent builds cannot leave a half-written file)."""
+    cxx = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++") or shutil.which("clang++")
+    if not cxx:
+        raise RuntimeError("no C++ compiler (g++, c++ or clang++; or set CXX)")
+    mi_dir = _mitsuba_dir()
+    if not (mi_dir / "include" / "embree3" / "rtcore.h").exists() or not (mi_dir / "libembree3.so").exists():
+        raise RuntimeError(f"the mitsuba wheel at {mi_dir} has no Embree headers/library")
+    fd, tmp = tempfile.mkstemp(prefix=".libglint_kbuffer.", suffix=".so", dir=HERE)
+    os.close(fd)
+    cmd = [cxx, "-O2", "-std=c++17", "-shared", "-fPIC", "-pthread", f"-I{mi_dir / 'include'}", str(SOURCE),
+           "-o", tmp, f"-L{mi_dir}", "-lembree3", f"-Wl,-rpath,{mi_dir}"]
+    try:
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stderr[-2000:]}")
+        os.replace(tmp, LIBRARY)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    if verbose:
+        print(f"built {LIBRARY}")
+    return LIBRARY
+
+
+def load():
+    """The ctypes library, or None when it cannot be built here (see :func:`why_not`)."""
+    global _lib, _why
+    if _lib is not None or _why:
+        return _lib
+    try:
+        if not LIBRARY.exists() or LIBRARY.stat().st_mtime < SOURCE.stat().st_mtime:
+            build()
+        lib = ctypes.CDLL(str(LIBRARY))
+    except (RuntimeError, OSError) as exc:
+        _why = str(exc)
+        return None
+    vp, i, f = ctypes.c_void_p, ctypes.c_int, ctypes.c_float
+    lib.kb_build.restype, lib.kb_build.argtypes = vp, [vp, i, f]
+    lib.kb_free.restype, lib.kb_free.argtypes = None, [vp]
+    lib.kb_query.restype = None
+    lib.kb_query.argtypes = [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
+    _lib = lib
+    return lib
+
+
+def why_not() -> str:
+    """Why :func:`load` returned None ('' if it did not)."""
+    load()
+    return _why
+
+
+class ShellSet:
+    """One Gaussian set's shells in an Embree scene of the native library (``data`` [N, 10] as the ellipsoids shape
+    holds it: centre, shell scales / extent, x y z w quaternion)."""
+
+    def __init__(self, data, extent: float):
+        import numpy as np
+        self._lib = load()
+        if self._lib is None:
+            raise RuntimeError(f"glint_mi.native is unavailable: {_why}")
+        self.data = np.ascontiguousarray(data, dtype=np.float32).reshape(-1, 10)
+        self.handle = self._lib.kb_build(self.data.ctypes.data, len(self.data), float(extent))
+
+    def query(self, o, d, t_prev, p_prev, active, k: int, threads: int):
+        """Per ray, the k nearest shell entries after (t_prev, p_prev): (prims [n, k] uint32, t [n, k] float32,
+        count [n] uint32), sorted by (t, prim); entries behind the origin (t < 0) are shells that hold it."""
+        import numpy as np
+        n = len(active)
+        f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)
+        o, d, t_prev = f32(o).reshape(n, 3), f32(d).reshape(n, 3), f32(t_prev)
+        p_prev = np.ascontiguousarray(p_prev, dtype=np.uint32)
+        act = np.ascontiguousarray(active, dtype=np.uint8)
+        prims, ts, count = np.zeros((n, k), np.uint32), np.zeros((n, k), np.float32), np.zeros(n, np.uint32)
+        self._lib.kb_query(self.handle, n, o.ctypes.data, d.ctypes.data, t_prev.ctypes.data, p_prev.ctypes.data,
+                           act.ctypes.data, k, prims.ctypes.data, ts.ctypes.data, count.ctypes.data, int(threads))
+        return prims, ts, count
+
+    def __del__(self):
+        if getattr(self, "handle", None) and self._lib is not None:
+            self._lib.kb_free(self.handle)
+            self.handle = None

@@ -1,0 +1,198 @@
+// glint k-buffer traversal: per ray, the K nearest bounding-shell entries of a Gaussian set in one BVH traversal.
+//
+// Mitsuba's ray_intersect_preliminary returns one hit per query, from the BVH root, and never reports a shell that
+// holds the ray origin. Here the shells are Embree user geometry (Embree as shipped in the mitsuba wheel): the
+// intersection callback records every shell entry after the last one composited into a sorted per-ray buffer of K
+// and rejects it, so one traversal yields the next K entries in order; once the buffer is full the ray's tfar
+// shrinks to the K-th entry and boxes beyond it are culled. A shell around the origin has its entry behind it
+// (t < 0) and is listed first, so no walk back is needed. The ray/ellipsoid quadratic is solved in double.
+// Built by `python -m glint_mi.native` (make does it); used by plugins/glint_integrator.py (traversal=kbuffer).
+#include <embree3/rtcore.h>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <thread>
+#include <vector>
+#include <algorithm>
+#include <limits>
+
+RTC_NAMESPACE_USE
+
+namespace {
+
+struct Prim {
+    double c[3];
+    double m[9];  // rows of R^T / s: world -> unit sphere
+    float lo[3], hi[3];
+};
+
+struct Set {
+    RTCDevice device;
+    RTCScene scene;
+    std::vector<Prim> prims;
+};
+
+struct Ctx {
+    RTCIntersectContext ctx;
+    const Prim *prims;
+    int K;
+    int count;
+    float *t;
+    uint32_t *p;
+    float t_prev;
+    uint32_t p_prev;
+    float tnear;
+};
+
+void bounds_fn(const RTCBoundsFunctionArguments *args) {
+    const Set *set = (const Set *) args->geometryUserPtr;
+    const Prim &q = set->prims[args->primID];
+    RTCBounds *b = args->bounds_o;
+    b->lower_x = q.lo[0]; b->lower_y = q.lo[1]; b->lower_z = q.lo[2];
+    b->upper_x = q.hi[0]; b->upper_y = q.hi[1]; b->upper_z = q.hi[2];
+}
+
+void intersect_fn(const RTCIntersectFunctionNArguments *args) {
+    if (!args->valid[0])
+        return;
+    Ctx *cx = (Ctx *) args->context;
+    RTCRayHit *rh = (RTCRayHit *) args->rayhit;
+    RTCRay &ray = rh->ray;
+    const uint32_t pid = args->primID;
+    const Prim &q = cx->prims[pid];
+    double oc[3] = {(double) ray.org_x - q.c[0], (double) ray.org_y - q.c[1], (double) ray.org_z - q.c[2]};
+    double dv[3] = {ray.dir_x, ray.dir_y, ray.dir_z};
+    double ol[3], dl[3];
+    for (int r = 0; r < 3; ++r) {
+        ol[r] = q.m[3 * r] * oc[0] + q.m[3 * r + 1] * oc[1] + q.m[3 * r + 2] * oc[2];
+        dl[r] = q.m[3 * r] * dv[0] + q.m[3 * r + 1] * dv[1] + q.m[3 * r + 2] * dv[2];
+    }
+    double a = dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2];
+    double b = ol[0] * dl[0] + ol[1] * dl[1] + ol[2] * dl[2];
+    // b^2 - a c without the cancellation of a distant origin: a (1 - |ol - (b / a) dl|^2)
+    double pc[3] = {ol[0] - b / a * dl[0], ol[1] - b / a * dl[1], ol[2] - b / a * dl[2]};
+    double disc = a * (1.0 - (pc[0] * pc[0] + pc[1] * pc[1] + pc[2] * pc[2]));
+    if (!(disc > 0.0) || !(a > 0.0))
+        return;
+    double sq = std::sqrt(disc);
+    float tn = (float) ((-b - sq) / a), tf = (float) ((-b + sq) / a);
+    if (!(tf > 0.f))
+        return;
+    if (!(tn > cx->t_prev || (tn == cx->t_prev && pid > cx->p_prev)))
+        return;
+    const int K = cx->K;
+    if (cx->count == K && !(tn < cx->t[K - 1]))
+        return;
+    int i = cx->count < K ? cx->count++ : K - 1;
+    while (i > 0 && (cx->t[i - 1] > tn || (cx->t[i - 1] == tn && cx->p[i - 1] > pid))) {
+        cx->t[i] = cx->t[i - 1];
+        cx->p[i] = cx->p[i - 1];
+        --i;
+    }
+    cx->t[i] = tn;
+    cx->p[i] = pid;
+    if (cx->count == K) {  // boxes entered beyond the K-th entry cannot hold a nearer one
+        ray.tfar = std::max(cx->t[K - 1], std::nextafter(cx->tnear, std::numeric_limits<float>::infinity()));
+        rh->hit.geomID = args->geomID;
+        rh->hit.primID = pid;
+    }
+}
+
+}  // namespace
+
+extern "C" {
+
+void *kb_build(const float *data, int n, float extent) {
+    Set *set = new Set();
+    set->device = rtcNewDevice("threads=1");
+    set->scene = rtcNewScene(set->device);
+    set->prims.resize(n);
+    for (int i = 0; i < n; ++i) {
+        const float *e = data + 10 * i;
+        Prim &q = set->prims[i];
+        double x = e[6], y = e[7], z = e[8], w = e[9];
+        double nq = std::sqrt(x * x + y * y + z * z + w * w);
+        if (nq > 1e-12) { x /= nq; y /= nq; z /= nq; w /= nq; } else { x = y = z = 0; w = 1; }
+        double R[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
+                         {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
+                         {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
+        double s[3] = {std::max((double) e[3] * extent, 1e-30), std::max((double) e[4] * extent, 1e-30),
+                       std::max((double) e[5] * extent, 1e-30)};
+        for (int k = 0; k < 3; ++k) {
+            q.c[k] = e[k];
+            for (int j = 0; j < 3; ++j)
+                q.m[3 * k + j] = R[j][k] / s[k];  // (R^T)[k][j] / s[k]
+            double h = std::sqrt(R[k][0] * R[k][0] * s[0] * s[0] + R[k][1] * R[k][1] * s[1] * s[1] +
+                                 R[k][2] * R[k][2] * s[2] * s[2]);
+            h = h * (1.0 + 1e-5) + 1e-6 * (1.0 + std::fabs((double) e[k]));  // float32 boxes hold the shell
+            q.lo[k] = (float) (e[k] - h);
+            q.hi[k] = (float) (e[k] + h);
+        }
+    }
+    RTCGeometry g = rtcNewGeometry(set->device, RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, n);
+    rtcSetGeometryUserData(g, set);
+    rtcSetGeometryBoundsFunction(g, bounds_fn, nullptr);
+    rtcSetGeometryIntersectFunction(g, intersect_fn);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(set->scene, g);
+    rtcReleaseGeometry(g);
+    rtcSetSceneBuildQuality(set->scene, RTC_BUILD_QUALITY_MEDIUM);
+    rtcCommitScene(set->scene);
+    return set;
+}
+
+void kb_free(void *h) {
+    Set *set = (Set *) h;
+    rtcReleaseScene(set->scene);
+    rtcReleaseDevice(set->device);
+    delete set;
+}
+
+// For each active ray: the K nearest shell entries (t, prim) after (t_prev, p_prev) among shells whose exit lies
+// ahead of the origin (shells around the origin have t < 0). Sorted by (t, prim); count per ray.
+void kb_query(void *h, int nrays, const float *o, const float *d, const float *t_prev, const uint32_t *p_prev,
+              const uint8_t *active, int K, uint32_t *out_p, float *out_t, uint32_t *out_count, int nthreads) {
+    Set *set = (Set *) h;
+    auto work = [&](int r0, int r1) {
+        for (int r = r0; r < r1; ++r) {
+            out_count[r] = 0;
+            if (!active[r])
+                continue;
+            Ctx cx;
+            rtcInitIntersectContext(&cx.ctx);
+            cx.prims = set->prims.data();
+            cx.K = K;
+            cx.count = 0;
+            cx.t = out_t + (size_t) r * K;
+            cx.p = out_p + (size_t) r * K;
+            cx.t_prev = t_prev[r];
+            cx.p_prev = p_prev[r];
+            RTCRayHit rh;
+            rh.ray.org_x = o[3 * r]; rh.ray.org_y = o[3 * r + 1]; rh.ray.org_z = o[3 * r + 2];
+            rh.ray.dir_x = d[3 * r]; rh.ray.dir_y = d[3 * r + 1]; rh.ray.dir_z = d[3 * r + 2];
+            rh.ray.tnear = std::max(0.f, t_prev[r]);
+            cx.tnear = rh.ray.tnear;
+            rh.ray.tfar = std::numeric_limits<float>::infinity();
+            rh.ray.mask = 0xFFFFFFFF;
+            rh.ray.flags = 0;
+            rh.ray.time = 0;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(set->scene, &cx.ctx, &rh);
+            out_count[r] = cx.count;
+        }
+    };
+    if (nthreads <= 1) {
+        work(0, nrays);
+        return;
+    }
+    std::vector<std::thread> ts;
+    int chunk = (nrays + nthreads - 1) / nthreads;
+    for (int t = 0; t < nthreads; ++t)
+        ts.emplace_back(work, t * chunk, std::min(nrays, (t + 1) * chunk));
+    for (auto &t : ts)
+        t.join();
+}
+
+}
