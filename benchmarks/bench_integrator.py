@@ -109,6 +109,10 @@ def configs(n: int, res) -> dict:
                                                      components="all"), key),
         "glint all three (all)": lambda: (glint_scene(three, res, components="all"), key),
         "glint all three (auto)": lambda: (glint_scene(three, res), key),
+        "glint interface only, traversal=bvh (Mitsuba's queries)": lambda: (
+            glint_scene({"interface": base}, res, components="interface", traversal="bvh"), key),
+        "glint all three (all), traversal=bvh (Mitsuba's queries)": lambda: (
+            glint_scene(three, res, components="all", traversal="bvh"), key),
         "glint all three (all), inside_origins off (Gaussians around origins unseen)": lambda: (
             glint_scene(three, res, components="all", inside_origins=False), key),
         "glint all three, gradient=ad": lambda: (glint_scene(three, res, components="all", gradient="ad"), key),

@@ -1,13 +1,14 @@
-"""Where the secondary passes' time goes, on bench_integrator's glass scene (issue 11's <= 2.5x target).
+"""Where each pass's time goes, on bench_integrator's glass scene (issue 11's <= 2.5x target).
 
 On the same rays, one run, each pass of the forward (camera -> interface set; reflection set from x_I along the
-mirror direction; transmission set from x_I along d) timed as it runs and as the BVH traversal alone (the same
-queries, no kernel evaluated), with the walk back behind the origin (inside_origins, the default) and without it;
-its hits per ray and the share of SIMD lanes busy (mean hits / mean over packets of their slowest ray: a symbolic
-loop runs a packet until its last ray is done); and two orderings of the same rays: the camera rays shuffled (how much
-ray coherence is worth to Mitsuba's Embree traversal) and the reflection rays sorted by direction octant then Morton
-order of x_I (the best of the sortings tried). Every timing is a median of 3 after a warm-up, ending with
-dr.sync_thread().
+mirror direction; transmission set from x_I along d) timed as it runs and as the traversal alone (the same shells
+found, no kernel evaluated), for three traversals: the native k-buffer (the default where it is built), Mitsuba's
+BVH queries with the walk back behind the origin (``traversal: bvh``), and without the walk back (inside_origins
+off: Gaussians around the origin unseen); its hits per ray (Mitsuba's queries also count a shell reported twice at its entry) and the share of SIMD lanes busy (mean hits / mean over
+packets of their slowest ray: a symbolic loop runs a packet until its last ray is done); and for Mitsuba's queries,
+two orderings of the same rays: the camera rays shuffled (how much ray coherence is worth to its packet traversal)
+and the reflection rays sorted by direction octant then Morton order of x_I (the best of the sortings tried). Every
+timing is a median of 3 after a warm-up, ending with dr.sync_thread().
 
     .venv/bin/python benchmarks/bench_passes.py [--gaussians 10000] [--res 128x96]
 """
@@ -25,6 +26,8 @@ import bench_integrator as B  # noqa: E402  (sets the variant)
 
 import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
+
+from glint_mi import native  # noqa: E402
 
 
 def _np3(v) -> np.ndarray:
@@ -60,8 +63,13 @@ def main() -> None:
     trans.means[:, 2] += 1.0
     sets = {"interface": base, "reflection": refl, "transmission": trans}
     rows = []
-    for inside in (True, False):
-        scene = B.glint_scene(sets, (w, h), components="all", inside_origins=inside)
+    traversals = {"kbuffer": {"traversal": "kbuffer"}, "bvh": {"traversal": "bvh"},
+                  "bvh, no walk back": {"traversal": "bvh", "inside_origins": False}}
+    if native.load() is None:
+        print(f"(no k-buffer rows: {native.why_not()})")
+        traversals.pop("kbuffer")
+    for label, props in traversals.items():
+        scene = B.glint_scene(sets, (w, h), components="all", **props)
         integ, sensor = scene.integrator(), scene.sensors()[0]
         idx = dr.arange(mi.UInt32, w * h)
         pos = mi.Vector2f(mi.Float(idx % w) + 0.5, mi.Float(idx // w) + 0.5) / mi.Vector2f(w, h)
@@ -90,35 +98,35 @@ def main() -> None:
             ms, hits = timed(gs, o_, d_, a_, w_)
             trav, _ = timed(gs, o_, d_, a_, w_, budget=mi.UInt32(hits))
             hv, av = np.array(hits), np.array(a_).astype(bool)
-            row = {"pass": name, "inside_origins": inside, "ms": ms, "traversal_ms": trav,
+            row = {"pass": name, "traversal": label, "ms": ms, "traversal_ms": trav,
                    "hits": float(hv[av].mean()), "lanes8": lane_efficiency(np.where(av, hv, 0), 8),
                    "lanes16": lane_efficiency(np.where(av, hv, 0), 16)}
-            if inside and name in ("camera", "reflection"):
+            if label == "bvh" and name in ("camera", "reflection"):
                 n = w * h
                 if name == "camera":
-                    perm, label = np.random.default_rng(0).permutation(n), "shuffled"
+                    perm, how = np.random.default_rng(0).permutation(n), "shuffled"
                 else:
                     dn, xo = _np3(d_), _np3(o_)
                     octant = (dn[:, 0] > 0) * 4 + (dn[:, 1] > 0) * 2 + (dn[:, 2] > 0)
-                    perm, label = np.lexsort((morton(xo), octant, ~av)), "sorted (octant, Morton of x_I)"
+                    perm, how = np.lexsort((morton(xo), octant, ~av)), "sorted (octant, Morton of x_I)"
                 pi = mi.UInt32(perm.astype(np.uint32))
                 g = [dr.gather(type(v), v, pi) for v in (o_, d_, a_)]
                 wg = None if w_ is None else dr.gather(mi.Float, w_, pi)
                 dr.eval(g, wg)
-                row["reordered"] = (label, timed(gs, *g, wg)[0])
+                row["reordered"] = (how, timed(gs, *g, wg)[0])
             rows.append(row)
     print(f"\nbench_integrator's glass scene, {args.gaussians} Gaussians per set, {w}x{h} "
           f"(variant {mi.variant()})\n")
-    print("| pass | walk back | ms | traversal only ms | hits / ray | lanes busy (8 / 16 wide) | same rays reordered |")
+    print("| pass | traversal | ms | traversal only ms | hits / ray | lanes busy (8 / 16 wide) | same rays reordered |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         re = f"{r['reordered'][0]}: {r['reordered'][1]:.1f} ms" if "reordered" in r else ""
-        print(f"| {r['pass']} | {'on' if r['inside_origins'] else 'off'} | {r['ms']:.1f} | {r['traversal_ms']:.1f} | "
+        print(f"| {r['pass']} | {r['traversal']} | {r['ms']:.1f} | {r['traversal_ms']:.1f} | "
               f"{r['hits']:.1f} | {r['lanes8']:.2f} / {r['lanes16']:.2f} | {re} |")
-    on = {r["pass"]: r["ms"] for r in rows if r["inside_origins"]}
-    off = {r["pass"]: r["ms"] for r in rows if not r["inside_origins"]}
-    print(f"\nsum of passes / camera pass: walk back on {sum(on.values()) / on['camera']:.2f}x, "
-          f"off {sum(off.values()) / off['camera']:.2f}x")
+    print()
+    for label in traversals:
+        ms = {r["pass"]: r["ms"] for r in rows if r["traversal"] == label}
+        print(f"{label}: sum of passes {sum(ms.values()):.1f} ms = {sum(ms.values()) / ms['camera']:.2f}x the camera pass")
 
 
 if __name__ == "__main__":

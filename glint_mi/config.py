@@ -64,6 +64,8 @@ class TrainConfig:
     lr_transparency: float = 0.05
     adam_eps: float = 1e-15
     adam: str = "selective"              # selective (touched rows only, per-row bias correction) | dense
+    traversal: str = "auto"              # kbuffer (native, one Embree traversal per 64 hits) | bvh (Mitsuba's
+    #                                      queries, one per hit) | auto: kbuffer where glint_mi.native builds
     stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
     #                                      the BVH queries (exact: same hits and arithmetic; rays x max_hits x 4 B
     #                                      per pass); false = re-trace (benchmarks/profile_step.py compares)
@@ -196,6 +198,7 @@ class TrainConfig:
         need(0 <= self.sh_degree <= 3, "sh_degree", "must be 0..3")
         need(self.max_order in (1, 2), "max_order", "must be 1 or 2")
         need(self.priors in ("all", "none"), "priors", "use all or none")
+        need(self.traversal in ("auto", "kbuffer", "bvh"), "traversal", "use auto, kbuffer or bvh")
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
         need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")

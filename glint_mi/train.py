@@ -145,7 +145,7 @@ class Trainer:
         # the integrator traces every enabled set for every ray ("all"): its per-ray "auto" skipping folds a skipped
         # weight into k_d, which zeroes the gradient that would let beta (or tau) grow from its initial value
         props = {"components": "all", "max_order": self.cfg.max_order,
-                 "max_hits": self.cfg.max_hits, "blend": self.cfg.blend,
+                 "max_hits": self.cfg.max_hits, "blend": self.cfg.blend, "traversal": self.cfg.traversal,
                  "aovs": "depth,normal,transparency,interface,alpha,weights"}
         self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, self.cfg.opacity_shells, **props))
         self.integ = self.scene.integrator()

@@ -75,7 +75,9 @@ and the same transport as a first-order reference on mesh scenes with real glass
      where float32 shell tests disagree (tested against each other and a float64 brute force).
  * - kbuffer_k
    - |int|
-   - Shell entries listed per traversal (a round); rays still going take another round. (Default: 16)
+   - Shell entries listed per traversal (a round); rays still going take another round. Any size gives the same
+     image; larger is faster (one round for the 64-hit training budget) and is capped so that a round's buffers stay
+     under 256 MiB (8 bytes per ray and entry). (Default: 64)
  * - max_depth
    - |int|
    - Mesh mode: path depth of the ``path`` tracer that gives radiance beyond the glass. (Default: 64)
@@ -121,6 +123,7 @@ AOV_GROUPS = {
 }
 DEFAULT_AOVS = "depth,normal,transparency,interface,reflection,transmission,alpha"
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1.0 / 255.0, 0.99, 1e-4
+KBUFFER_BYTES = 256 * 2 ** 20
 BLENDS = ("fresnel", "envgs", "alpha")
 
 
@@ -588,7 +591,8 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         dr.eval(origin, dd, active, t_stop)
         xyz = lambda v: np.stack([np.asarray(v.x), np.asarray(v.y), np.asarray(v.z)], axis=1)
         O, D, go = xyz(origin), xyz(dd), np.asarray(active, dtype=bool).copy()
-        shells, k = gs.native(), self.kbuffer_k
+        # the round's buffers take 8 bytes per ray and entry: at most KBUFFER_BYTES (a 1080p frame lists 16 at once)
+        shells, k = gs.native(), max(4, min(self.kbuffer_k, KBUFFER_BYTES // (8 * n)))
         T, acc = dr.full(mi.Float, 1.0, n), _widen(Composite(), n)
         d_o, d_d = dr.zeros(mi.Vector3f, n), dr.zeros(mi.Vector3f, n)
         hits, count = dr.zeros(mi.UInt32, n), dr.zeros(mi.UInt32, n)

@@ -422,6 +422,23 @@ def test_opacity_shells_option_reaches_every_shape(room, tmp_path):
     assert not info(integ.sets["interface"].shape).opacity_shells
 
 
+def test_traversal_option_reaches_the_integrator(room, tmp_path):
+    """traversal: bvh trains through Mitsuba's queries; the default uses the native k-buffer where it builds, and
+    two steps from the same seed give the same losses to 2 % (same hits and order up to float32 shell tests)."""
+    from glint_mi import native
+
+    losses = {}
+    for tr_name in ("bvh", "auto"):
+        tr = Trainer(tmp_path / tr_name, tiny_cfg(iterations=2, patches=4, traversal=tr_name),
+                     scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+        tr.train(progress=False)
+        assert tr.integ.kbuffer == (tr_name == "auto" and native.load() is not None)
+        losses[tr_name] = [h["total"] for h in tr.history]
+    np.testing.assert_allclose(losses["auto"], losses["bvh"], rtol=2e-2)  # Adam turns float32 noise into steps
+    with pytest.raises(ConfigError, match="traversal"):
+        tiny_cfg(traversal="fast").validate()
+
+
 def test_config_saved_before_epochs_keeps_its_iterations(tmp_path):
     import json
     p = tmp_path / "config.json"
