@@ -27,7 +27,6 @@ struct Prim {
 };
 
 struct Set {
-    RTCDevice device;
     RTCScene scene;
     std::vector<Prim> prims;
 };
@@ -98,14 +97,18 @@ void intersect_fn(const RTCIntersectFunctionNArguments *args) {
     }
 }
 
+RTCDevice device() {  // one per process (a device per set rebuilt after every training push cost its set-up)
+    static RTCDevice dev = rtcNewDevice("threads=1");
+    return dev;
+}
+
 }  // namespace
 
 extern "C" {
 
 void *kb_build(const float *data, int n, float extent) {
     Set *set = new Set();
-    set->device = rtcNewDevice("threads=1");
-    set->scene = rtcNewScene(set->device);
+    set->scene = rtcNewScene(device());
     set->prims.resize(n);
     for (int i = 0; i < n; ++i) {
         const float *e = data + 10 * i;
@@ -129,7 +132,7 @@ void *kb_build(const float *data, int n, float extent) {
             q.hi[k] = (float) (e[k] + h);
         }
     }
-    RTCGeometry g = rtcNewGeometry(set->device, RTC_GEOMETRY_TYPE_USER);
+    RTCGeometry g = rtcNewGeometry(device(), RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(g, n);
     rtcSetGeometryUserData(g, set);
     rtcSetGeometryBoundsFunction(g, bounds_fn, nullptr);
@@ -145,7 +148,6 @@ void *kb_build(const float *data, int n, float extent) {
 void kb_free(void *h) {
     Set *set = (Set *) h;
     rtcReleaseScene(set->scene);
-    rtcReleaseDevice(set->device);
     delete set;
 }
 
