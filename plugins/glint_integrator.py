@@ -77,7 +77,7 @@ and the same transport as a first-order reference on mesh scenes with real glass
    - |int|
    - Shell entries listed per traversal (a round); rays still going take another round. Any size gives the same
      image; larger is faster (one round for the 64-hit training budget) and is capped so that a round's buffers stay
-     under 256 MiB (8 bytes per ray and entry). (Default: 64)
+     under 256 MiB (12 bytes per ray and entry). (Default: 64)
  * - max_depth
    - |int|
    - Mesh mode: path depth of the ``path`` tracer that gives radiance beyond the glass. (Default: 64)
@@ -591,8 +591,9 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         dr.eval(origin, dd, active, t_stop)
         xyz = lambda v: np.stack([np.asarray(v.x), np.asarray(v.y), np.asarray(v.z)], axis=1)
         O, D, go = xyz(origin), xyz(dd), np.asarray(active, dtype=bool).copy()
-        # the round's buffers take 8 bytes per ray and entry: at most KBUFFER_BYTES (a 1080p frame lists 16 at once)
-        shells, k = gs.native(), max(4, min(self.kbuffer_k, KBUFFER_BYTES // (8 * n)))
+        # a round holds 12 bytes per ray and entry (prims and t from the traversal, the prims again for Dr.Jit): at
+        # most KBUFFER_BYTES (a 1080p frame lists 10 entries per round)
+        shells, k = gs.native(), max(4, min(self.kbuffer_k, KBUFFER_BYTES // (12 * n)))
         T, acc = dr.full(mi.Float, 1.0, n), _widen(Composite(), n)
         d_o, d_d = dr.zeros(mi.Vector3f, n), dr.zeros(mi.Vector3f, n)
         hits, count = dr.zeros(mi.UInt32, n), dr.zeros(mi.UInt32, n)

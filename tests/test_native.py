@@ -88,10 +88,13 @@ def test_kbuffer_and_bvh_render_the_same():
 
 
 @needs_native
-def test_buffer_size_does_not_change_the_image():
+def test_buffer_size_does_not_change_the_image(monkeypatch):
     ref = _render(4, traversal="kbuffer", kbuffer_k=64)
     for k in (1, 3, 16):
         np.testing.assert_array_equal(_render(4, traversal="kbuffer", kbuffer_k=k), ref)
+    import glint_mi_plugins.glint_integrator as gi
+    monkeypatch.setattr(gi, "KBUFFER_BYTES", 12 * 48 * 36 * 5)  # the memory cap: 5 entries per round here
+    np.testing.assert_array_equal(_render(4, traversal="kbuffer"), ref)
 
 
 @needs_native
