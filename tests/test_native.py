@@ -68,6 +68,30 @@ def test_kbuffer_lists_shell_entries_in_order(rng):
     assert np.mean(same) >= 0.99 and sum(inside) >= 20  # shells around the origin are listed (first)
 
 
+@needs_native
+def test_query_on_drjits_pool_equals_one_thread(rng):
+    """Blocks of rays run on Dr.Jit's worker threads (right after a kernel, while they spin): the same lists as one
+    thread, inactive rays untouched, for a ray count that is not a multiple of the block."""
+    data, extent = _shells(rng, 600), 2.0
+    shells = native.ShellSet(data, extent)
+    n = 3001
+    o = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+    d = rng.normal(size=(n, 3)).astype(np.float32)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    t_prev, p_prev = np.full(n, -np.inf, np.float32), np.full(n, 0xFFFFFFFF, np.uint32)
+    go = rng.uniform(size=n) < 0.7
+    one = shells.query(o, d, t_prev, p_prev, go, 16, 1)
+    x = dr.sin(dr.arange(mi.Float, 1 << 20))
+    dr.eval(x)  # wakes the pool's workers
+    pool = shells.query(o, d, t_prev, p_prev, go, 16, max(2, dr.thread_count()))
+    assert one[2][go].sum() > 1000 and not one[2][~go].any()
+    for a, b in zip(one, pool):
+        np.testing.assert_array_equal(a, b)
+    rows = np.nonzero(go)[0][:100]
+    same = [list(pool[0][r, :pool[2][r]]) == [p for _, p in _entries(data, extent, o[r], d[r])][:16] for r in rows]
+    assert np.mean(same) >= 0.98  # float32 shell-test ties aside
+
+
 def _scene(rng, **props):
     sets = {"interface": random_set(rng, 300, spread=(1, 1, 0.4), transparency=0.6, specular=0.1),
             "reflection": random_set(rng, 300, center=(0, 0, -0.8), spread=(1, 1, 0.4)),
@@ -121,3 +145,16 @@ def test_unavailable_kbuffer_names_the_fix(monkeypatch, rng):
     assert not _scene(rng).integrator().kbuffer  # auto: Mitsuba's BVH queries
     with pytest.raises((ValueError, RuntimeError), match="traversal"):
         _scene(rng, traversal="fast")
+
+
+@needs_native
+def test_a_library_that_does_not_load_is_rebuilt(monkeypatch, tmp_path):
+    """A library built against wheels since moved or reinstalled fails to load: load() rebuilds it once."""
+    stale = tmp_path / "libglint_kbuffer.so"
+    stale.write_bytes(b"not a shared library")  # newer than the source, so only the failed load can trigger it
+    monkeypatch.setattr(native, "LIBRARY", stale)
+    monkeypatch.setattr(native, "_lib", None)
+    monkeypatch.setattr(native, "_why", "")
+    assert native.load() is not None, native.why_not()
+    assert stale.read_bytes()[:4] == b"\x7fELF"
+    assert not list(tmp_path.glob(".libglint_kbuffer.*"))  # no temporary left behind

@@ -27,6 +27,11 @@ def _mitsuba_dir() -> Path:
     return Path(mitsuba.__file__).resolve().parent
 
 
+def _drjit_dir() -> Path:
+    import drjit
+    return Path(drjit.__file__).resolve().parent
+
+
 def build(verbose: bool = False) -> Path:
     """Compile kbuffer.cpp into LIBRARY (atomically: concurrent builds cannot leave a half-written file)."""
     cxx = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++") or shutil.which("clang++")
@@ -35,10 +40,14 @@ def build(verbose: bool = False) -> Path:
     mi_dir = _mitsuba_dir()
     if not (mi_dir / "include" / "embree3" / "rtcore.h").exists() or not (mi_dir / "libembree3.so").exists():
         raise RuntimeError(f"the mitsuba wheel at {mi_dir} has no Embree headers/library")
-    fd, tmp = tempfile.mkstemp(prefix=".libglint_kbuffer.", suffix=".so", dir=HERE)
+    dr_dir = _drjit_dir()  # its thread pool (nanothread) runs the queries
+    if not (dr_dir / "include" / "nanothread" / "nanothread.h").exists() or not (dr_dir / "libnanothread.so").exists():
+        raise RuntimeError(f"the drjit wheel at {dr_dir} has no nanothread header/library")
+    fd, tmp = tempfile.mkstemp(prefix=".libglint_kbuffer.", suffix=".so", dir=LIBRARY.parent)
     os.close(fd)
-    cmd = [cxx, "-O2", "-std=c++17", "-shared", "-fPIC", "-pthread", f"-I{mi_dir / 'include'}", str(SOURCE),
-           "-o", tmp, f"-L{mi_dir}", "-lembree3", f"-Wl,-rpath,{mi_dir}"]
+    cmd = [cxx, "-O2", "-std=c++17", "-shared", "-fPIC", "-pthread", f"-I{mi_dir / 'include'}",
+           f"-I{dr_dir / 'include'}", str(SOURCE), "-o", tmp, f"-L{mi_dir}", "-lembree3", f"-Wl,-rpath,{mi_dir}",
+           f"-L{dr_dir}", "-lnanothread", f"-Wl,-rpath,{dr_dir}"]
     try:
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode != 0:
@@ -60,7 +69,11 @@ def load():
     try:
         if not LIBRARY.exists() or LIBRARY.stat().st_mtime < SOURCE.stat().st_mtime:
             build()
-        lib = ctypes.CDLL(str(LIBRARY))
+        try:
+            lib = ctypes.CDLL(str(LIBRARY))
+        except OSError:  # built against wheels since moved or reinstalled (their paths are in the library): rebuild
+            build()
+            lib = ctypes.CDLL(str(LIBRARY))
     except (RuntimeError, OSError) as exc:
         _why = str(exc)
         return None

@@ -6,12 +6,15 @@
 // and rejects it, so one traversal yields the next K entries in order; once the buffer is full the ray's tfar
 // shrinks to the K-th entry and boxes beyond it are culled. A shell around the origin has its entry behind it
 // (t < 0) and is listed first, so no walk back is needed. The ray/ellipsoid quadratic is solved in double.
+// Rays are handed out in blocks to Dr.Jit's own worker threads (its nanothread pool): after a Dr.Jit kernel those
+// workers spin for a while, and threads of our own would share the cores with them (measured: 2 threads of our own
+// ran no faster than 1 inside a training step).
 // Built by `python -m glint_mi.native` (make does it); used by plugins/glint_integrator.py (traversal=kbuffer).
 #include <embree3/rtcore.h>
+#include <nanothread/nanothread.h>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <thread>
 #include <vector>
 #include <algorithm>
 #include <limits>
@@ -151,50 +154,76 @@ void kb_free(void *h) {
     delete set;
 }
 
+}  // extern "C"
+
+namespace {
+
 // For each active ray: the K nearest shell entries (t, prim) after (t_prev, p_prev) among shells whose exit lies
 // ahead of the origin (shells around the origin have t < 0). Sorted by (t, prim); count per ray.
+struct Query {
+    const Set *set;
+    int nrays, K;
+    const float *o, *d, *t_prev;
+    const uint32_t *p_prev;
+    const uint8_t *active;
+    uint32_t *out_p;
+    float *out_t;
+    uint32_t *out_count;
+};
+
+void query_rays(const Query &w, int r0, int r1) {
+    for (int r = r0; r < r1; ++r) {
+        w.out_count[r] = 0;
+        if (!w.active[r])
+            continue;
+        Ctx cx;
+        rtcInitIntersectContext(&cx.ctx);
+        cx.prims = w.set->prims.data();
+        cx.K = w.K;
+        cx.count = 0;
+        cx.t = w.out_t + (size_t) r * w.K;
+        cx.p = w.out_p + (size_t) r * w.K;
+        cx.t_prev = w.t_prev[r];
+        cx.p_prev = w.p_prev[r];
+        RTCRayHit rh;
+        rh.ray.org_x = w.o[3 * r]; rh.ray.org_y = w.o[3 * r + 1]; rh.ray.org_z = w.o[3 * r + 2];
+        rh.ray.dir_x = w.d[3 * r]; rh.ray.dir_y = w.d[3 * r + 1]; rh.ray.dir_z = w.d[3 * r + 2];
+        rh.ray.tnear = std::max(0.f, w.t_prev[r]);
+        cx.tnear = rh.ray.tnear;
+        rh.ray.tfar = std::numeric_limits<float>::infinity();
+        rh.ray.mask = 0xFFFFFFFF;
+        rh.ray.flags = 0;
+        rh.ray.time = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(w.set->scene, &cx.ctx, &rh);
+        w.out_count[r] = cx.count;
+    }
+}
+
+constexpr int BLOCK = 64;  // rays per work unit: small enough to balance dark and busy parts of an image
+
+void query_block(uint32_t index, void *payload) {
+    const Query &w = *(const Query *) payload;
+    int r0 = (int) index * BLOCK;
+    query_rays(w, r0, std::min(w.nrays, r0 + BLOCK));
+}
+
+}  // namespace
+
+extern "C" {
+
 void kb_query(void *h, int nrays, const float *o, const float *d, const float *t_prev, const uint32_t *p_prev,
               const uint8_t *active, int K, uint32_t *out_p, float *out_t, uint32_t *out_count, int nthreads) {
-    Set *set = (Set *) h;
-    auto work = [&](int r0, int r1) {
-        for (int r = r0; r < r1; ++r) {
-            out_count[r] = 0;
-            if (!active[r])
-                continue;
-            Ctx cx;
-            rtcInitIntersectContext(&cx.ctx);
-            cx.prims = set->prims.data();
-            cx.K = K;
-            cx.count = 0;
-            cx.t = out_t + (size_t) r * K;
-            cx.p = out_p + (size_t) r * K;
-            cx.t_prev = t_prev[r];
-            cx.p_prev = p_prev[r];
-            RTCRayHit rh;
-            rh.ray.org_x = o[3 * r]; rh.ray.org_y = o[3 * r + 1]; rh.ray.org_z = o[3 * r + 2];
-            rh.ray.dir_x = d[3 * r]; rh.ray.dir_y = d[3 * r + 1]; rh.ray.dir_z = d[3 * r + 2];
-            rh.ray.tnear = std::max(0.f, t_prev[r]);
-            cx.tnear = rh.ray.tnear;
-            rh.ray.tfar = std::numeric_limits<float>::infinity();
-            rh.ray.mask = 0xFFFFFFFF;
-            rh.ray.flags = 0;
-            rh.ray.time = 0;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-            rtcIntersect1(set->scene, &cx.ctx, &rh);
-            out_count[r] = cx.count;
-        }
-    };
-    if (nthreads <= 1) {
-        work(0, nrays);
+    Query w{(const Set *) h, nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
+    if (nthreads <= 1 || nrays <= BLOCK) {
+        query_rays(w, 0, nrays);
         return;
     }
-    std::vector<std::thread> ts;
-    int chunk = (nrays + nthreads - 1) / nthreads;
-    for (int t = 0; t < nthreads; ++t)
-        ts.emplace_back(work, t * chunk, std::min(nrays, (t + 1) * chunk));
-    for (auto &t : ts)
-        t.join();
+    // on Dr.Jit's pool (nullptr: the default pool, the one its LLVM backend launches kernels on)
+    uint32_t blocks = (uint32_t) ((nrays + BLOCK - 1) / BLOCK);
+    Task *task = task_submit_dep(nullptr, nullptr, 0, blocks, query_block, &w, sizeof(Query), nullptr, 1);
+    task_wait_and_release(task);
 }
 
 }
