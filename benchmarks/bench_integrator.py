@@ -90,14 +90,19 @@ def volprim_scene(s, res):
 VOLPRIM_CUTOFFS = {"transmittance_min": 0.01, "alpha_min": 0.0, "alpha_max": 0.9999}
 
 
+def three_sets(n: int) -> dict:
+    """The glass scene's sets: the interface (glass in front), a reflected cloud and a transmitted one behind it."""
+    trans = gaussians(n, 2, glass=False)
+    trans.means[:, 2] += 1.0
+    return {"interface": gaussians(n, 0), "reflection": gaussians(n, 1, glass=False), "transmission": trans}
+
+
 def configs(n: int, res) -> dict:
     """name -> (scene, key of a differentiable parameter) for n Gaussians per set."""
-    base = gaussians(n, 0)
-    refl, trans = gaussians(n, 1, glass=False), gaussians(n, 2, glass=False)
-    trans.means[:, 2] += 1.0
+    three = three_sets(n)
+    base, refl, trans = three["interface"], three["reflection"], three["transmission"]
     noglass = gaussians(n, 0, glass=False)
     key = "integrator.interface.opacities"
-    three = {"interface": base, "reflection": refl, "transmission": trans}
     return {
         "volprim_rf_basic": lambda: (volprim_scene(base, res), "g.opacities"),
         "glint interface only, volprim's cut-offs": lambda: (glint_scene({"interface": base}, res,

@@ -28,6 +28,7 @@ import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
 from glint_mi import native  # noqa: E402
+from glint_mi.render import camera_rays  # noqa: E402
 
 
 def _np3(v) -> np.ndarray:
@@ -58,10 +59,7 @@ def main() -> None:
     ap.add_argument("--res", default="128x96")
     args = ap.parse_args()
     w, h = (int(v) for v in args.res.split("x"))
-    base = B.gaussians(args.gaussians, 0)
-    refl, trans = B.gaussians(args.gaussians, 1, glass=False), B.gaussians(args.gaussians, 2, glass=False)
-    trans.means[:, 2] += 1.0
-    sets = {"interface": base, "reflection": refl, "transmission": trans}
+    sets = B.three_sets(args.gaussians)
     rows = []
     traversals = {"kbuffer": {"traversal": "kbuffer"}, "bvh": {"traversal": "bvh"},
                   "bvh, no walk back": {"traversal": "bvh", "inside_origins": False}}
@@ -71,9 +69,7 @@ def main() -> None:
     for label, props in traversals.items():
         scene = B.glint_scene(sets, (w, h), components="all", **props)
         integ, sensor = scene.integrator(), scene.sensors()[0]
-        idx = dr.arange(mi.UInt32, w * h)
-        pos = mi.Vector2f(mi.Float(idx % w) + 0.5, mi.Float(idx // w) + 0.5) / mi.Vector2f(w, h)
-        ray, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5), True)
+        ray, _ = camera_rays(sensor, np.stack(np.unravel_index(np.arange(w * h), (h, w))[::-1], axis=1))
         o, d, active = mi.Point3f(ray.o) + 0.0 * ray.d, mi.Vector3f(ray.d), dr.full(mi.Bool, True, w * h)
         I = integ.march(integ.active_set("interface"), o, d, active)
         kd, ks, kt, do_r, do_t = integ._weights(I, d, active)

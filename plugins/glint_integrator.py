@@ -525,12 +525,16 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             info["list"] = (listed, count) if record else None
         return acc
 
+    def _t_stop(self, weight):
+        """Per ray, the transmittance at which a pass stops: weight * T < transmittance_min (weight None: 1)."""
+        if weight is None:
+            return mi.Float(self.transmittance_min)
+        return dr.minimum(self.transmittance_min / dr.maximum(dr.detach(weight), self.transmittance_min), 1.0)
+
     @dr.syntax
     def _march_bvh(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot):
         replay = adjoint is not None
-        t_stop = mi.Float(self.transmittance_min)
-        if weight is not None:
-            t_stop = dr.minimum(self.transmittance_min / dr.maximum(dr.detach(weight), self.transmittance_min), 1.0)
+        t_stop = self._t_stop(weight)
         origin = mi.Point3f(dr.detach(o0))
         dd = mi.Vector3f(dr.detach(d))
         # Mitsuba's shell test never reports a shell that contains the ray origin: walk from one shell diameter
@@ -582,9 +586,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         same stopping rule (T <= t_stop or the hit budget). Rays still going after a full buffer take another round."""
         replay = adjoint is not None
         n = max(dr.width(x) for x in (active, o0, d))
-        t_stop = mi.Float(self.transmittance_min)
-        if weight is not None:
-            t_stop = dr.minimum(self.transmittance_min / dr.maximum(dr.detach(weight), self.transmittance_min), 1.0)
+        t_stop = self._t_stop(weight)
         origin, dd = _widen(mi.Point3f(dr.detach(o0)), n), _widen(mi.Vector3f(dr.detach(d)), n)
         active = _widen(mi.Bool(active), n)
         t_stop = _widen(t_stop, n)
@@ -593,27 +595,27 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         O, D, go = xyz(origin), xyz(dd), np.asarray(active, dtype=bool).copy()
         # a round holds 12 bytes per ray and entry (prims and t from the traversal, the prims again for Dr.Jit): at
         # most KBUFFER_BYTES (a 1080p frame lists 10 entries per round)
-        shells, k = gs.native(), max(4, min(self.kbuffer_k, KBUFFER_BYTES // (12 * n)))
+        shells, k = gs.native(), min(self.kbuffer_k, max(4, KBUFFER_BYTES // (12 * n)))
         T, acc = dr.full(mi.Float, 1.0, n), _widen(Composite(), n)
         d_o, d_d = dr.zeros(mi.Vector3f, n), dr.zeros(mi.Vector3f, n)
-        hits, count = dr.zeros(mi.UInt32, n), dr.zeros(mi.UInt32, n)
+        hits = dr.zeros(mi.UInt32, n)  # every listed entry composited is one hit: the list count is the hit count
         t_prev, p_prev = np.full(n, -np.inf, np.float32), np.full(n, 0xFFFFFFFF, np.uint32)
         rows = np.arange(n)
         while go.any():
             prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count())
-            T, acc, d_o, d_d, hits, count, more = self._kbuffer_round(
+            T, acc, d_o, d_d, hits, more = self._kbuffer_round(
                 gs, mi.UInt32(prims.ravel()), mi.UInt32(cnt), k, o0, d, t_stop, total, adjoint, ray_grad, budget,
-                listed, slot, T, acc, d_o, d_d, hits, count)
-            dr.eval(T, acc, d_o, d_d, hits, count, more, listed)
+                listed, slot, T, acc, d_o, d_d, hits)
+            dr.eval(T, acc, d_o, d_d, hits, more, listed)
             last = np.maximum(cnt.astype(np.int64) - 1, 0)
             t_prev = np.where(cnt > 0, ts[rows, last], t_prev)
             p_prev = np.where(cnt > 0, prims[rows, last], p_prev)
             go &= (cnt == k) & np.asarray(more, dtype=bool)
-        return ((d_o, d_d) if replay else acc), hits, count
+        return ((d_o, d_d) if replay else acc), hits, hits
 
     @dr.syntax
     def _kbuffer_round(self, gs, prims, cnt, k_max, o0, d, t_stop, total, adjoint, ray_grad, budget, listed, slot,
-                       T, acc, d_o, d_d, hits, count):
+                       T, acc, d_o, d_d, hits):
         """Composite one round's listed entries (``prims`` [rays x k_max], ``cnt`` per ray) in order."""
         limit = self.max_hits if budget is None else budget
         base = dr.arange(mi.UInt32, dr.width(cnt)) * k_max
@@ -622,8 +624,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         while dr.hint(active, mode="symbolic", label=f"glint {gs.role} k-buffer", exclude=[listed, slot]):
             prim = dr.gather(mi.UInt32, prims, base + k, active)
             if dr.hint(listed is not None, mode="scalar"):  # recording: no scatter in other kernels
-                dr.scatter(listed, prim, slot + count, active)
-            count += mi.UInt32(dr.select(active, 1, 0))
+                dr.scatter(listed, prim, slot + hits, active)
             if budget is None:
                 acc, alpha, g_o, g_d = self._hit(gs, prim, o0, d, active, T, acc, total, adjoint, ray_grad)
                 d_o += g_o
@@ -632,7 +633,7 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
             hits += mi.UInt32(dr.select(active, 1, 0))
             k += 1
             active &= (k < cnt) & (T > t_stop) & (hits < limit)
-        return T, acc, d_o, d_d, hits, count, (T > t_stop) & (hits < limit)
+        return T, acc, d_o, d_d, hits, (T > t_stop) & (hits < limit)
 
     @dr.syntax
     def _replay_list(self, gs: GaussianSetRef, o0, d, active, total, adjoint, ray_grad, hit_list):

@@ -14,7 +14,6 @@
 #include <nanothread/nanothread.h>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <vector>
 #include <algorithm>
 #include <limits>
@@ -215,6 +214,7 @@ extern "C" {
 
 void kb_query(void *h, int nrays, const float *o, const float *d, const float *t_prev, const uint32_t *p_prev,
               const uint8_t *active, int K, uint32_t *out_p, float *out_t, uint32_t *out_count, int nthreads) {
+    // nthreads <= 1: on the calling thread; else on the pool (its own size, Dr.Jit's thread count)
     Query w{(const Set *) h, nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
     if (nthreads <= 1 || nrays <= BLOCK) {
         query_rays(w, 0, nrays);
