@@ -13,7 +13,7 @@ import numpy as np
 
 from .data import View
 from .dataset.cameras import MI_TO_COLMAP
-from .dataset.priors import load_prior
+from .data.priors import load_prior, prior_conventions
 
 
 def pixel_rays(view: View, pixels: np.ndarray | None = None):
@@ -51,62 +51,38 @@ class Batch:
     patches: int
     patch: int
     cue: np.ndarray | None = None       # [M] SfM see-through cue: +1 seen through, -1 opaque, 0 no evidence
-
-
-def downsampled_view(view: View, k: int) -> View:
-    """The camera of ``view`` with pixels ``k`` times larger (trailing rows / columns that do not fill a block are
-    dropped): the ray through a coarse pixel centre passes through the centre of its k x k block of fine pixels."""
-    if k == 1:
-        return view
-    K = view.K.copy()
-    K[:2] /= k
-    return dataclasses.replace(view, width=view.width // k, height=view.height // k, K=K)
-
-
-def block_mean(a: np.ndarray, k: int) -> np.ndarray:
-    """[H, W, ...] -> [H // k, W // k, ...] by averaging k x k blocks (an area filter, like a lower-resolution
-    sensor)."""
-    if k == 1:
-        return a
-    h, w = a.shape[0] // k, a.shape[1] // k
-    a = a[:h * k, :w * k]
-    return a.reshape(h, k, w, k, *a.shape[2:]).mean(axis=(1, 3))
+    depth_inverse: bool = False         # the depth prior is a disparity: affine in 1 / depth
 
 
 class RayBank:
-    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: bool = False,
-                 downsample: int = 1):
-        k = int(downsample)
-        fine = views
-        views = [downsampled_view(v, k) for v in fine]
-        if k > 1 and any(v.width < 3 or v.height < 3 for v in views):
-            raise ValueError(f"train_downsample = {k} leaves images smaller than 3 x 3 pixels; use a smaller factor.")
-        self.views, self.k = views, k
+    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: bool = False):
+        """Photos, priors and rays of ``views`` at their own resolution (a dataset loaded with ``downscale`` k
+        gives views whose images, priors and ground truth are block-averaged by k)."""
+        self.views = views
         self.sizes = [(v.height, v.width) for v in views]
         self.offsets = np.cumsum([0] + [h * w for h, w in self.sizes])
-        self.rgb = np.concatenate([block_mean(v.load_image(), k).reshape(-1, 3) for v in fine]).astype(np.float32)
+        self.rgb = np.concatenate([v.load_image().reshape(-1, 3) for v in views]).astype(np.float32)
         self.dirs = np.concatenate([pixel_rays(v) for v in views]).astype(np.float32)
         self.origins = np.array([v.c2w[:3, 3] for v in views], np.float32)
         self.axes = np.array([camera_axes_cv(v) for v in views], np.float32)
         self.priors = {}
+        self.prior_info = prior_conventions(root) if use_priors else {}
         for kind in ("depth", "normal", "albedo"):
-            maps = [load_prior(root, v, kind) if use_priors else None for v in fine]
+            maps = [load_prior(root, v, kind) if use_priors else None for v in views]
             if all(m is not None for m in maps):
-                maps = [block_mean(m, k) for m in maps]
-                if kind == "normal" and k > 1:
-                    maps = [m / np.maximum(np.linalg.norm(m, axis=-1, keepdims=True), 1e-12) for m in maps]
                 self.priors[kind] = np.concatenate([m.reshape(h * w, -1) for m, (h, w) in zip(maps, self.sizes)])
         self.priors.setdefault("depth", None)
+        self.depth_inverse = self.prior_info.get("depth") == "disparity"
         self.depth_affine = None  # see align_depth_priors
         self.cue = None  # see see_through_cue
         self.glass = None
         if glass_masks:
-            gts = [v.load_gt() for v in fine]
+            gts = [v.load_gt() for v in views]
             if any(g is None for g in gts):
                 from .data import DatasetError
 
                 raise DatasetError(f"{root}: trans_masks = gt needs gt/<view>.exr for every training view.")
-            self.glass = np.concatenate([block_mean(g["glass"], k).reshape(-1) for g in gts]).astype(np.float32)
+            self.glass = np.concatenate([g["glass"].reshape(-1) for g in gts]).astype(np.float32)
 
     def align_depth_priors(self, points: np.ndarray | None, min_points: int = 12, trials: int = 256,
                            seed: int = 0) -> dict:
@@ -135,6 +111,8 @@ class RayBank:
             pp = prior[self.offsets[i] + row[inside] * v.width + col[inside], 0].astype(np.float64)
             keep = pp > 0
             zz, pp = zz[keep], pp[keep]
+            if self.depth_inverse:  # disparity prior ~ w / z + q
+                zz = 1.0 / zz
             counts.append(len(zz))
             if len(zz) < min_points:
                 continue
@@ -187,13 +165,16 @@ class RayBank:
             xy, xyz = ob
             h, w = self.sizes[i]
             z = ((xyz - self.origins[i]) @ self.axes[i].astype(np.float64))[:, 2]
-            col, row = np.floor(xy[:, 0] / self.k).astype(np.int64), np.floor(xy[:, 1] / self.k).astype(np.int64)
+            col, row = np.floor(xy[:, 0]).astype(np.int64), np.floor(xy[:, 1]).astype(np.int64)
             ok = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (z > 0)
             col, row, z = col[ok], row[ok], z[ok]
             pr = prior[self.offsets[i] + row * w + col, 0].astype(np.float64)
             a, q = self.depth_affine[i]
             seen = pr > 0
-            lab = np.where(z[seen] > (pr[seen] - q) / a * (1.0 + margin), 1, -1)
+            z_prior = (pr[seen] - q) / a  # the prior's metric depth (its inverse for a disparity prior)
+            if self.depth_inverse:
+                z_prior = np.where(z_prior > 0, 1.0 / np.maximum(z_prior, 1e-12), np.inf)
+            lab = np.where(z[seen] > z_prior * (1.0 + margin), 1, -1)
             acc = np.zeros((h, w))
             np.add.at(acc, (row[seen], col[seen]), lab)
             if not acc.any():
@@ -232,7 +213,7 @@ class RayBank:
                      None if get("depth") is None else get("depth")[:, 0], get("normal"), get("albedo"),
                      None if self.glass is None else self.glass[flat],
                      None if self.depth_affine is None else self.depth_affine[view], patches, p,
-                     None if self.cue is None else self.cue[flat])
+                     None if self.cue is None else self.cue[flat], self.depth_inverse)
 
 
 def patch_neighbours(patches: int, p: int):

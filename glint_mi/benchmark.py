@@ -57,7 +57,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
     (run / "method.json").write_text(json.dumps({"method": method, "overrides": METHODS[method].overrides,
                                                  "differs": METHODS[method].differs}, indent=1))
     res = trainer.train(progress=False)
-    out = evaluate(trainer.integ_for_eval(), trainer.ds.test_views, run, res["train_s"])
+    out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"])
     return {k: v for k, v in out.items() if k not in ("per_view", "renders")}
 
 
@@ -93,7 +93,7 @@ def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
 
 def write_results(rows: list[dict], out: Path, header: str = "") -> str:
     """results.csv (one row per method x scene) and table.md (per scene, then the mean per method)."""
-    from .train import atomic_write_text
+    from .runs import atomic_write_text
 
     keys = ["method", "scene", "seed", *COLUMNS]
     # Round once, to the CSV's 6 digits, and build the table from those values: rounding the raw value to the

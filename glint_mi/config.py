@@ -34,8 +34,9 @@ class TrainConfig:
     #                                      96 x 54 one); 0: ``iterations`` as given. An explicit --iterations sets 0.
     patches: int = 32
     patch: int = 8
-    train_downsample: int = 1            # train on photos and priors box-averaged by this factor (1 = full
-    #                                      resolution); evaluation always renders the test views at full resolution
+    downscale: int = 1                   # read the dataset at 1/k of its resolution (area filter, or a capture's
+    #                                      images_<k>/): photos, priors, training and evaluation alike
+    eval_full: bool = False              # evaluate at the dataset's full resolution instead of the training one
     # model
     kernel: str = "surfel"
     sh_degree: int = 1                   # highest SH degree; raised one band every sh_every of the run
@@ -171,6 +172,8 @@ class TrainConfig:
         base = cls.for_preset(values.get("preset", "quick"), values.get("variant", "supplement"))
         if "iterations" in values and "epochs" not in values:  # saved before budgets in epochs: a fixed count
             values = {**values, "epochs": 0.0}
+        if "train_downsample" in values:  # saved before the dataset's downscale replaced it (same meaning for
+            values = {**values, "downscale": values.pop("train_downsample"), "eval_full": True}  # training)
         if "fresnel" in values and "blend" not in values:  # saved before the blend option: a boolean
             fresnel = values.pop("fresnel")
             values = {**values, "blend": "fresnel" if fresnel else "envgs"}
@@ -191,8 +194,8 @@ class TrainConfig:
         need(isinstance(self.epochs, (int, float)) and self.epochs >= 0, "epochs",
              "must be >= 0 (rays per training pixel; 0 = use iterations)")
         need(self.patches >= 1, "patches", "must be >= 1")
-        need(isinstance(self.train_downsample, int) and self.train_downsample >= 1, "train_downsample",
-             "must be an integer >= 1 (2 = train on half-resolution images)")
+        need(isinstance(self.downscale, int) and self.downscale >= 1, "downscale",
+             "must be an integer >= 1 (4 = a quarter of the width and height)")
         need(self.patch >= 3, "patch", "must be >= 3 (D-SSIM and normal consistency work on patches)")
         need(self.kernel in cv.KERNELS, "kernel", f"use one of {cv.KERNELS}")
         need(0 <= self.sh_degree <= 3, "sh_degree", "must be 0..3")

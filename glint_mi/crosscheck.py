@@ -86,7 +86,7 @@ def side_by_side(mi_gt: dict, cy: dict, path: Path, title: str) -> None:
 def crosscheck(scene_dir: Path) -> dict:
     from .data import load_dataset
     from .dataset.cycles_render import read_cycles_exr
-    from .train import atomic_write_text
+    from .runs import atomic_write_text
 
     scene_dir = Path(scene_dir)
     cdir = scene_dir / "cycles"

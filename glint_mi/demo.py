@@ -62,10 +62,10 @@ def main(argv=None) -> int:
     rc = optimize.main(cli)
     if rc != 0:
         return rc
-    from glint_mi.data import load_dataset
-    from glint_mi.scene import read_scene
+    from glint_mi.config import TrainConfig
+    from glint_mi.runs import load_run_dataset
 
-    ds = load_dataset(read_scene(args.scene).dataset)
+    ds = load_run_dataset(run, TrainConfig.load(run / "config.json"))
     contact_sheet(run, ds.test_views[0], out / "buffers.png")
     print(f"demo done in {time.perf_counter() - t0:.0f} s: run folder {run} (metrics.json, renders/, model/, "
           f"curves.png), contact sheet {out / 'buffers.png'}")

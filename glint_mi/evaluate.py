@@ -1,8 +1,10 @@
 """Evaluate a trained run: ``python -m glint_mi.evaluate RUN`` renders the test views and recomputes the metrics.
 
-Writes ``RUN/metrics.json`` (means, FPS, train time, machine), ``RUN/per_view/<view>.json``, and per test view
-``RUN/renders/<view>_{rgb,depth,normal,t,cI,cR,cT}.png`` plus one ``<view>.exr`` with every buffer (linear
-floats: R G B, Z, N.X N.Y N.Z, T, cI.*, cR.*, cT.*).
+Renders at the training resolution (``--full``: the dataset's full resolution) with a progress bar, and writes, as
+each view finishes, ``RUN/per_view/<view>.json``, ``RUN/renders/<view>_{rgb,depth,normal,t,cI,cR,cT}.png`` and one
+``<view>.exr`` with every buffer (R G B and the components cI.*, cR.*, cT.* as linear light: the model's colours are
+fitted to sRGB photos and converted; Z planar depth, N.X N.Y N.Z world normal, T transparency), then ``RUN/metrics.json`` (means, FPS, train time, machine). Ctrl-C
+keeps the views already done.
 """
 from __future__ import annotations
 
@@ -18,7 +20,9 @@ import numpy as np
 from . import metrics as M
 from .batch import pixel_rays
 from .data import View
+from .conventions import srgb_to_linear
 from .render import floats
+from .runs import atomic_write_text
 
 CHUNK = 1 << 16
 
@@ -76,11 +80,15 @@ def save_renders(folder: Path, name: str, b: dict) -> None:
     _png(folder / f"{name}_t.png", b["transparency"])
     for key, short in (("interface", "cI"), ("reflection", "cR"), ("transmission", "cT")):
         _png(folder / f"{name}_{short}.png", b[key])
-    ch = {"R": b["rgb"][..., 0], "G": b["rgb"][..., 1], "B": b["rgb"][..., 2], "Z": depth,
+    # the model is fitted to sRGB photos, so its colours are sRGB-encoded values; an EXR holds linear light
+    lin = lambda x: srgb_to_linear(np.clip(x, 0.0, None))
+    rgb = lin(b["rgb"])
+    ch = {"R": rgb[..., 0], "G": rgb[..., 1], "B": rgb[..., 2], "Z": depth,
           "N.X": b["normal"][..., 0], "N.Y": b["normal"][..., 1], "N.Z": b["normal"][..., 2], "T": b["transparency"]}
     for key, short in (("interface", "cI"), ("reflection", "cR"), ("transmission", "cT")):
+        comp = lin(b[key])
         for i, c in enumerate("RGB"):
-            ch[f"{short}.{c}"] = b[key][..., i]
+            ch[f"{short}.{c}"] = comp[..., i]
     ch = {k: np.ascontiguousarray(v, np.float32) for k, v in ch.items()}
     tmp = folder / f"{name}.exr.partial.exr"
     with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, ch) as f:
@@ -103,44 +111,68 @@ def machine() -> str:
 
 
 def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: float | None = None,
-             write: bool = True) -> dict:
-    """Metrics of ``integ`` (a glint integrator holding trained sets) on ``views``; FPS after a warm-up render."""
-    from .train import atomic_write_text
+             write: bool = True, progress: bool = False) -> dict:
+    """Metrics of ``integ`` (a glint integrator holding trained sets) on ``views``, at the views' resolution.
 
-    per_view, renders = {}, {}
-    render_view(integ, views[0])  # warm-up: kernels compiled here are not counted in the FPS
-    t0 = time.perf_counter()
-    for v in views:
-        renders[v.name] = render_view(integ, v)
-    fps = len(views) / max(time.perf_counter() - t0, 1e-9)
-    for v in views:
-        b = renders[v.name]
-        per_view[v.name] = M.view_metrics(b, v.load_gt(), v.load_image())
-    result = {"metrics": M.mean_metrics(list(per_view.values())), "fps": fps, "train_s": train_s,
-              "resolution": [views[0].width, views[0].height], "views": [v.name for v in views],
-              "machine": machine()}
-    result["metrics"].update(fps=fps, train_s=train_s)
-    if write and out_dir is not None:
-        out_dir = Path(out_dir)
-        for v in views:
-            save_renders(out_dir / "renders", v.name, renders[v.name])
-            (out_dir / "per_view").mkdir(exist_ok=True)
-            atomic_write_text(out_dir / "per_view" / f"{v.name}.json", json.dumps(per_view[v.name], indent=1))
-        atomic_write_text(out_dir / "metrics.json", json.dumps(result, indent=1))
-    result["per_view"] = per_view
-    result["renders"] = renders
-    return result
+    With ``write``, each view's renders and ``per_view/<view>.json`` are written as soon as it is done, and
+    ``metrics.json`` after every view (``"views_done"`` says how many), so a Ctrl-C keeps what is finished: the
+    KeyboardInterrupt propagates after the partial metrics are written. FPS counts the views after the first (whose
+    render also compiles the kernels); with one view, that view is rendered a second time."""
+    from tqdm.auto import tqdm
+
+    out_dir = Path(out_dir) if (write and out_dir is not None) else None
+    per_view, renders, seconds = {}, {}, []
+    res = {"resolution": [views[0].width, views[0].height], "machine": machine(), "train_s": train_s}
+
+    def result(done_all: bool) -> dict:
+        timed = seconds[1:] if len(seconds) > 1 else seconds
+        fps = len(timed) / max(sum(timed), 1e-9) if timed else float("nan")
+        r = {"metrics": {**M.mean_metrics(list(per_view.values())), "fps": fps, "train_s": train_s}, "fps": fps,
+             **res, "views": list(per_view), "views_done": len(per_view), "views_total": len(views)}
+        if not done_all:
+            r["interrupted"] = True
+        return r
+
+    bar = tqdm(views, desc="evaluate", unit="view", disable=not progress, dynamic_ncols=True)
+    try:
+        for v in bar:
+            t0 = time.perf_counter()
+            b = render_view(integ, v)
+            seconds.append(time.perf_counter() - t0)
+            if len(views) == 1:  # the first render compiled the kernels: time a second one
+                t0 = time.perf_counter()
+                b = render_view(integ, v)
+                seconds.append(time.perf_counter() - t0)
+            per_view[v.name] = M.view_metrics(b, v.load_gt(), v.load_image())
+            renders[v.name] = b
+            if out_dir is not None:
+                save_renders(out_dir / "renders", v.name, b)
+                (out_dir / "per_view").mkdir(parents=True, exist_ok=True)
+                atomic_write_text(out_dir / "per_view" / f"{v.name}.json", json.dumps(per_view[v.name], indent=1))
+                atomic_write_text(out_dir / "metrics.json", json.dumps(result(len(per_view) == len(views)), indent=1))
+            bar.set_postfix(psnr=f"{per_view[v.name]['psnr']:.2f}", refresh=False)
+    except KeyboardInterrupt:
+        bar.close()
+        if out_dir is not None:
+            print(f"\nevaluation interrupted: {len(per_view)} of {len(views)} views kept in {out_dir}/metrics.json")
+        raise
+    bar.close()
+    out = result(True)
+    out["per_view"] = per_view
+    out["renders"] = renders
+    return out
 
 
-def load_run(run: str | Path):
-    """(integrator, dataset, config, train_s) of a finished run folder (its ``model/``)."""
+def load_run(run: str | Path, full: bool = False):
+    """(integrator, dataset, config, train_s) of a finished run folder (its ``model/``); the dataset at the
+    training resolution, or with ``full`` at its full resolution."""
     import glint_mi
 
     from .config import TrainConfig
-    from .data import load_dataset
-    from .gaussians import GaussianSet
+    from .conventions import ROLES
     from .examples import gaussian_scene_dict
-    from .train import RunError
+    from .gaussians import GaussianSet
+    from .runs import RunError, load_run_dataset
 
     run = Path(run)
     model = run / "model"
@@ -148,12 +180,9 @@ def load_run(run: str | Path):
         raise RunError(f"{run}: not a finished run (needs config.json and model/); train with "
                        f"`python -m glint_mi.optimize scene.xml --out {run}`.")
     cfg = TrainConfig.load(run / "config.json")
-    info = json.loads((run / "run.json").read_text())
-    ds = load_dataset(info["dataset"])
+    ds = load_run_dataset(run, cfg, full=full or cfg.eval_full)
     glint_mi.set_variant()
     import mitsuba as mi
-
-    from .conventions import ROLES
 
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
     scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components="all",
@@ -166,16 +195,22 @@ def load_run(run: str | Path):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m glint_mi.evaluate", description=__doc__.split("\n")[0])
     ap.add_argument("run", type=Path)
+    ap.add_argument("--full", action="store_true",
+                    help="render the test views at the dataset's full resolution (default: the training one)")
+    ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
     from .data import DatasetError
-    from .train import RunError
+    from .runs import RunError
 
     try:
-        integ, ds, cfg, train_s = load_run(args.run)
+        integ, ds, cfg, train_s = load_run(args.run, full=args.full)
     except (RunError, DatasetError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    res = evaluate(integ, ds.test_views, args.run, train_s)
+    try:
+        res = evaluate(integ, ds.test_views, args.run, train_s, progress=not args.no_progress)
+    except KeyboardInterrupt:
+        return 130
     print(M.table({args.run.name: res["metrics"]}))
     return 0
 

@@ -231,6 +231,9 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         if st["depth"]:
             prior = floats(b.depth_prior)
             mask = (prior > 0) & (A > 0.5)
+            if b.depth_inverse:  # a disparity prior (MiDaS, Depth Anything): the fit is affine in 1 / depth
+                mask &= depth > 1e-6
+                depth = 1.0 / dr.maximum(depth, 1e-6)
             if c.depth_align == "sfm" and b.depth_affine is not None:
                 fit = np.isfinite(b.depth_affine[:, 0])  # views without an SfM fit keep the per-batch fit
                 w_fix, q_fix = floats(np.where(fit, b.depth_affine[:, 0], 1.0)), floats(
@@ -262,6 +265,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             need_masks = st["plausibility"] and c.plausibility_mask == "opaque"
             if (st["trans"] and c.trans_masks == "depth_gap") or need_masks:
                 w_t, w_o, stats["mask_t"], allowed = batch_transparency_masks(c, b, out, extent, st["t_gate"])
+                stats.update(depth_gap_stats(c, out, extent))
                 if st["trans"] and c.trans_masks == "depth_gap":
                     parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
                 if st["t_gate"]:  # t_raise: masks - nothing may raise t where the gate's opaque votes fall (replay)
@@ -328,6 +332,18 @@ def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False)
     improve = see_through_gain(b, out).reshape(shape)
     return ((w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32), float(np.mean(w_t > 0)),
             allowed)
+
+
+def depth_gap_stats(c, out: dict, extent: float) -> dict:
+    """Where both sets are surfaces (accumulated alpha >= trans_min_alpha): the share of the batch's pixels whose
+    transmission depth lies more than tau_delta behind the interface's (``gap_behind``, what L_trans's depth rule
+    calls glass) and in front of it (``gap_front``, impossible for glass: the depth gap's noise)."""
+    _, Dd, _, DA = out["trans_direct"]
+    dI, dT = np.array(out["depth"]), np.array(Dd)
+    valid = (dI > 0) & (dT > 0) & (np.array(out["alpha"]) >= c.trans_min_alpha) & (np.array(DA) >= c.trans_min_alpha)
+    tau = c.tau_delta * extent
+    dz = dT - dI
+    return {"gap_behind": float(np.mean(valid & (dz > tau))), "gap_front": float(np.mean(valid & (dz < -tau)))}
 
 
 def see_through_gain(b, out: dict) -> np.ndarray:

@@ -3,6 +3,7 @@
     python -m glint_mi.optimize scene.xml --preset quick --out runs/room      # new run
     python -m glint_mi.optimize --resume runs/room                           # continue exactly (Ctrl-C saves)
     python -m glint_mi.optimize scene.xml --set w_trans=0 --set components=all  # any TrainConfig field
+    python -m glint_mi.optimize scene.xml --method 3dgs                       # a baseline (glint_mi.methods)
 
 Prints a metrics table at the end; everything is written under ``--out`` (see glint_mi.train).
 """
@@ -46,7 +47,9 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
     preset = args.preset or values.pop("preset", None) or "quick"
     variant = args.variant or values.pop("variant", None) or "supplement"
     values.pop("preset", None), values.pop("variant", None)
-    return TrainConfig.for_preset(preset, variant, **values)
+    from .methods import config_for
+
+    return config_for(getattr(args, "method", None) or "glint", preset, variant, **values)
 
 
 def main(argv=None) -> int:
@@ -57,6 +60,8 @@ def main(argv=None) -> int:
     ap.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in this folder")
     ap.add_argument("--preset", choices=["tiny", "quick", "bench"], help="size preset (default quick)")
     ap.add_argument("--variant", choices=["supplement", "release"], help="schedule (default supplement)")
+    ap.add_argument("--method", default="glint",
+                    help="a method of the comparison (glint_mi.methods: glint, 3dgs, 2dgs, ...; default glint)")
     ap.add_argument("--config", type=Path, help="JSON of TrainConfig fields")
     ap.add_argument("--iterations", type=int, help="a fixed iteration count instead of the preset's epochs budget")
     ap.add_argument("--seed", type=int)
@@ -67,10 +72,11 @@ def main(argv=None) -> int:
 
     from . import metrics as M
     from .data import DatasetError
-    from .dataset.priors import PriorError
+    from .data.priors import PriorError
     from .gaussians import GaussianDataError
     from .scene import SceneError, read_scene
-    from .train import RunError, Trainer
+    from .runs import RunError, check_run_folder
+    from .train import Trainer
 
     try:
         if args.resume:
@@ -82,11 +88,10 @@ def main(argv=None) -> int:
         else:
             if args.scene is None:
                 ap.error("give a scene XML or --resume RUN")
+            run = args.out or Path("runs") / args.scene.resolve().parent.name
+            check_run_folder(run)  # before the dataset is read
             spec = read_scene(args.scene)
             cfg = build_config(args, spec.integrator)
-            run = args.out or Path("runs") / args.scene.resolve().parent.name
-            if (run / "checkpoint.npz").exists():
-                raise RunError(f"{run}: already holds a run; continue it with --resume {run} or choose --out.")
             trainer = Trainer(run, cfg, scene=spec)
     except (ConfigError, SceneError, DatasetError, PriorError, GaussianDataError, RunError) as e:
         print(f"error: {e}", file=sys.stderr)
@@ -106,7 +111,12 @@ def main(argv=None) -> int:
     if not args.no_eval and trainer.ds.test_views:
         from .evaluate import evaluate
 
-        out = evaluate(trainer.integ_for_eval(), trainer.ds.test_views, run, res["train_s"])
+        try:
+            out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"],
+                           progress=not args.no_progress)
+        except KeyboardInterrupt:
+            print(f"the model is saved in {run}/model; finish the evaluation with `python -m glint_mi.evaluate {run}`")
+            return 130
         print(M.table({run.name: out["metrics"]}))
     return 0
 

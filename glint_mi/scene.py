@@ -41,11 +41,12 @@ class OptimScene:
     dataset: Path
     sets: dict[str, SetSpec]
     integrator: dict              # the integrator's other properties (components, max_order, ...)
+    missing: str = "error"        # frames whose image is missing: error | skip (``missing_images``)
 
 
 # ------------------------------------------------------------------ writer
 def scene_xml(dataset: str | Path, components: str = "auto", kernel: str = "surfel", grid_n: int | None = None,
-              grid_k: int | None = None, relative_to: Path | None = None) -> str:
+              grid_k: int | None = None, relative_to: Path | None = None, missing: str = "error") -> str:
     """The XML text; without ``grid_n``/``grid_k`` the training config's values apply (presets size them)."""
     ds = Path(dataset).resolve()
     if relative_to is not None:
@@ -59,12 +60,14 @@ def scene_xml(dataset: str | Path, components: str = "auto", kernel: str = "surf
         f'            <string name="kernel" value="{kernel}"/>{extra}\n        </shape>')
     grid = "".join(f'\n            <integer name="{k}" value="{v}"/>'
                    for k, v in (("grid_n", grid_n), ("grid_k", grid_k)) if v is not None)
+    skip = ('\n        <!-- frames whose image is missing are left out -->\n'
+            '        <string name="missing_images" value="skip"/>') if missing == "skip" else ""
     return f"""<scene version="3.0.0">
     <!-- GLINT optimisation input: python -m glint_mi.optimize <this file>
          init: sfm = the dataset's SfM points (SfM runs if it has none), grid = N^3 cells x K points over the scene
          bounds (grid_n, grid_k; the paper: 32, 5; default: the training preset's), none = leave the set out. -->
     <integrator type="glint" id="integrator">
-        <string name="dataset" value="{ds}"/>
+        <string name="dataset" value="{ds}"/>{skip}
         <string name="components" value="{components}"/>
 {shape("interface", "sfm")}
 {shape("transmission", "sfm")}
@@ -102,6 +105,9 @@ def read_scene(path: str | Path) -> OptimScene:
         raise SceneError(f"{path}: the glint integrator has no <string name=\"dataset\" value=\"...\"/>; add the "
                          f"dataset folder (COLMAP, transforms.json or generated layout) to it.")
     dataset = Path(props.pop("dataset"))
+    missing = str(props.pop("missing_images", "error"))
+    if missing not in ("error", "skip"):
+        raise SceneError(f"{path}: missing_images = {missing!r}; use error or skip.")
     if not dataset.is_absolute():
         dataset = (path.parent / dataset).resolve()
     sets = {}
@@ -129,7 +135,7 @@ def read_scene(path: str | Path) -> OptimScene:
             sets[role] = SetSpec(role, init, None, kernel, p.get("grid_n"), p.get("grid_k"))
     if "interface" not in sets:
         raise SceneError(f"{path}: no interface set; the glint integrator needs <shape name=\"interface\">.")
-    return OptimScene(path, dataset, sets, props)
+    return OptimScene(path, dataset, sets, props, missing)
 
 
 # ---------------------------------------------------------- initialisation
@@ -167,28 +173,68 @@ def scene_bounds(ds: Dataset, points: np.ndarray | None) -> tuple[np.ndarray, np
     return lo - pad, hi + pad, extent
 
 
-def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray]:
-    """The dataset's SfM points, or points triangulated now with pycolmap from its images and known poses."""
-    if ds.points is not None and len(ds.points):
-        return ds.points, (ds.colors if ds.colors is not None else np.full((len(ds.points), 3), 128, np.uint8))
-    from .dataset.cameras import Camera
+SFM_VERSION = 1
+
+
+def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The dataset's SfM points, or points triangulated with pycolmap from its images and known poses (cached under
+    ``$GLINT_CACHE``/sfm, with their tracks, which then become the dataset's ``sparse`` model). Returns (xyz, rgb,
+    report); the report says where the points came from, or in one line why there are none."""
+    from .data.images import image_size
+    from .data.undistort import cache_root, digest, file_key
+    from .dataset.cameras import Camera, write_colmap_text
     from .dataset.sfm import triangulate_known_poses
 
-    if max(max(v.width, v.height) for v in ds.views) < 200:
-        log("no SfM points, and the images are too small for SIFT (< 200 px): skipping SfM")
-        return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
-    image_dirs = {v.image_path.parent for v in ds.views}
-    if len(image_dirs) != 1 or next(iter(image_dirs)).name != "images":
-        log("no SfM points and the images are not in one images/ folder: skipping SfM")
-        return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
-    cams = [Camera.from_view(v) for v in ds.views]
-    try:
-        xyz, rgb, stats, _ = triangulate_known_poses(next(iter(image_dirs)).parent, cams)
-    except Exception as e:  # pycolmap fails on too few features: say so and fall back
-        log(f"SfM (pycolmap, known poses) failed: {e}")
-        return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
-    log(f"SfM (pycolmap, known poses): {stats['points3D']} points, {stats['mean_reprojection_error_px']:.2f} px")
-    return xyz, rgb
+    none = (np.zeros((0, 3)), np.zeros((0, 3), np.uint8))
+    if ds.points is not None and len(ds.points):
+        return ds.points, (ds.colors if ds.colors is not None else np.full((len(ds.points), 3), 128, np.uint8)), {
+            "source": "dataset", "points": int(len(ds.points))}
+    files = [v.image_path for v in ds.views]
+    cams = []
+    for v in ds.views:  # SIFT on the image files as they are (full size unless a capture's images_<k> is used)
+        w, h = image_size(v.image_path)
+        s = v.downscale if (w // v.downscale, h // v.downscale) == (v.width, v.height) else 1
+        c = Camera.from_view(v)
+        cams.append(dataclasses.replace(c, width=w, height=h, fx=c.fx * s, fy=c.fy * s, cx=c.cx * s, cy=c.cy * s))
+    if max(max(c.width, c.height) for c in cams) < 200:
+        why = "the images are too small for SIFT (< 200 px)"
+        log(f"no SfM points: {why}; starting from random points")
+        return (*none, {"source": "none", "points": 0, "why": why})
+    key = digest(SFM_VERSION, [(c.name, file_key(f), c.K.tolist(), c.c2w.tolist()) for f, c in zip(files, cams)])
+    folder = cache_root() / "sfm" / key / "sparse" / "0"
+    if (folder / "points3D.txt").exists():
+        from .data.colmap import read_text
+
+        _, _, xyz, rgb, _, _ = read_text(folder)
+        rep = {"source": "triangulated (cached)", "points": int(len(xyz)), "cache": str(folder)}
+    else:
+        log(f"no SfM points in {ds.root}: triangulating with pycolmap from the {len(files)} images and their known "
+            f"poses (SIFT, exhaustive matching; once, cached in {folder.parent.parent})")
+        import time
+
+        t0 = time.perf_counter()
+        try:
+            xyz, rgb, stats, tracks = triangulate_known_poses(files, cams)
+        except Exception as e:  # pycolmap fails in many ways (no features, no matches): one line, then fall back
+            why = f"SfM (pycolmap, known poses) failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
+            log(f"{why}; starting from random points")
+            return (*none, {"source": "none", "points": 0, "why": why})
+        scale = {c.name: c.fx / v.K[0, 0] / v.downscale for c, v in zip(cams, ds.views)}  # -> full-size pixels
+        tmp = folder.with_name(f"0.partial-{__import__('os').getpid()}")
+        write_colmap_text(tmp, [c.scaled(1 / scale[c.name]) for c in cams], (xyz, rgb),
+                          {n: (xy / scale[n], rows) for n, (xy, rows) in tracks.items()})
+        try:
+            tmp.rename(folder)
+        except OSError:  # another process cached it first
+            import shutil
+
+            shutil.rmtree(tmp, ignore_errors=True)
+        rep = {"source": "triangulated", "points": int(len(xyz)), "cache": str(folder),
+               "seconds": round(time.perf_counter() - t0, 1), **stats}
+        log(f"SfM (pycolmap, known poses): {stats['points3D']} points, {stats['mean_reprojection_error_px']:.2f} px "
+            f"in {rep['seconds']:.0f} s")
+    ds.sparse, ds.tracks_distorted = folder, False  # its tracks feed the L_trans see-through cue
+    return xyz, rgb, rep
 
 
 def points_set(points: np.ndarray, colors: np.ndarray, opacity: float, sh_degree: int,
@@ -235,7 +281,8 @@ def initial_sets(scene: OptimScene, ds: Dataset, cfg, rng: np.random.Generator, 
     report = {}
     specs = scene.sets
     need_sfm = any(s.init == "sfm" for s in specs.values())
-    pts, cols = (sfm_points(ds, log) if need_sfm else (np.zeros((0, 3)), np.zeros((0, 3), np.uint8)))
+    pts, cols, report["sfm"] = (sfm_points(ds, log) if need_sfm else
+                                (np.zeros((0, 3)), np.zeros((0, 3), np.uint8), {"source": "not needed"}))
     lo, hi, extent = scene_bounds(ds, pts if len(pts) else None)
     report["sfm_points"] = int(len(pts))
     if need_sfm and len(pts) < cfg.init_min_points:
@@ -279,19 +326,24 @@ def initial_sets(scene: OptimScene, ds: Dataset, cfg, rng: np.random.Generator, 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m glint_mi.scene",
-                                 description="Print an optimisation scene XML for a dataset (redirect it to a file).")
+                                 description="Print an optimisation scene XML for a dataset (redirect it to a file); "
+                                             "what reading the dataset found goes to stderr.")
     ap.add_argument("dataset", type=Path, help="COLMAP folder, transforms.json or a generated scene folder")
     ap.add_argument("--components", default="auto")
     ap.add_argument("--kernel", default="surfel", choices=cv.KERNELS)
     ap.add_argument("--grid-n", type=int, help="reflection grid cells per axis (default: the preset's; paper 32)")
     ap.add_argument("--grid-k", type=int, help="random points per cell (default: the preset's; paper 5)")
+    ap.add_argument("--skip-missing", action="store_true",
+                    help="leave out the frames whose image is missing (default: refuse, listing them)")
     args = ap.parse_args(argv)
+    missing = "skip" if args.skip_missing else "error"
     try:
-        load_dataset(args.dataset)
+        ds = load_dataset(args.dataset, missing=missing, log=lambda m: print(m, file=sys.stderr))
     except DatasetError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    sys.stdout.write(scene_xml(args.dataset, args.components, args.kernel, args.grid_n, args.grid_k))
+    print(ds.summary(), file=sys.stderr)
+    sys.stdout.write(scene_xml(args.dataset, args.components, args.kernel, args.grid_n, args.grid_k, missing=missing))
     return 0
 
 

@@ -29,7 +29,7 @@ GRID = {
               "max_order 2": {"max_order": 2, "components": "all"}},
     # rays per iteration stay the same; each ray then covers a 2 x 2 block (evaluation at full resolution); with an
     # epochs budget the half-resolution run gets a quarter of the iterations (the same rays per training pixel)
-    "resolution": {"train 1/1 res": {}, "train 1/2 res": {"train_downsample": 2}},
+    "resolution": {"train 1/1 res": {}, "train 1/2 res": {"downscale": 2, "eval_full": True}},
 }
 # the components question on a room WITHOUT glass (same room, `python -m glint_mi.dataset make --no-glass`)
 NO_GLASS = {"interface": {"components": "interface"}, "all three": {"components": "all"}, "auto": {"components": "auto"}}
@@ -79,7 +79,7 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
             else:
                 tr = Trainer(run, cfg, scene=read_scene(scene_xml), log=lambda *a: None)
             r = tr.train(progress=False)
-            res = evaluate(tr.integ_for_eval(), tr.ds.test_views, run, r["train_s"])
+            res = evaluate(tr.integ_for_eval(), tr.eval_views(), run, r["train_s"])
             res = {k: v for k, v in res.items() if k not in ("per_view", "renders")}
             log(f"{name}: {r['train_s']:.0f} s, PSNR {res['metrics']['psnr']:.2f}")
         seen[key] = (res, trained_as)

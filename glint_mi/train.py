@@ -17,7 +17,6 @@ import csv
 import dataclasses
 import io
 import json
-import os
 import signal
 import time
 from pathlib import Path
@@ -32,27 +31,11 @@ from .data import Dataset, DatasetError, load_dataset
 from .examples import gaussian_scene_dict
 from .gaussians import GaussianSet
 from .render import floats
+from .runs import RunError, atomic_write_bytes, atomic_write_text, load_run_dataset
 from .scene import OptimScene, initial_sets, read_scene
 from .strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
-
-
-class RunError(ValueError):
-    """Bad run folder / resume request; the message names the file and the fix."""
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".partial")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    atomic_write_bytes(path, text.encode())
 
 
 class Trainer:
@@ -78,16 +61,14 @@ class Trainer:
             self._fresh()
         cfg = self.cfg
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
-                            glass_masks=cfg.trans_masks == "gt", downsample=cfg.train_downsample)
+                            glass_masks=cfg.trans_masks == "gt")
         self.report["priors"] = sorted(self.bank.has)
         if cfg.depth_align == "sfm" and "depth" in self.bank.has:
             self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
             self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
                      f"{len(self.bank.views)} views (the others keep the per-batch fit)")
         if cfg.trans_cue != "none" and "transmission" in self.sets:  # only L_trans and plausibility read it
-            from .data import read_observations
-
-            cue = self.bank.see_through_cue(read_observations(self.ds.root), cfg.cue_margin, cfg.cue_radius)
+            cue = self.bank.see_through_cue(self.ds.observations(), cfg.cue_margin, cfg.cue_radius)
             self.report["trans_cue"] = cue
             self.log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
                      f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
@@ -102,7 +83,9 @@ class Trainer:
         if self.scene_spec is None:
             raise RunError("a new run needs an optimisation scene (python -m glint_mi.scene DATASET > scene.xml).")
         if self.ds is None:
-            self.ds = load_dataset(self.scene_spec.dataset)
+            self.ds = load_dataset(self.scene_spec.dataset, downscale=self.cfg.downscale,
+                                   missing=self.scene_spec.missing, log=self.log)
+            self.log(self.ds.summary())
         if not self.ds.train_views:
             raise DatasetError(f"{self.ds.root}: no training views (check split.json).")
         self._set_budget()
@@ -118,12 +101,13 @@ class Trainer:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.cfg.save(self.run_dir / "config.json")
         atomic_write_text(self.run_dir / "run.json", json.dumps(
-            {"scene": str(self.scene_spec.path), "dataset": str(self.ds.root)}, indent=1))
+            {"scene": str(self.scene_spec.path), "dataset": str(self.ds.root), "dataset_options": self.ds.options,
+             "dataset_notes": self.ds.notes, "sparse": str(self.ds.sparse) if self.ds.sparse else None,
+             "tracks_distorted": self.ds.tracks_distorted}, indent=1))
 
     def _set_budget(self):
         """epochs -> iterations from the training set's size (recomputed identically on resume)."""
-        k = self.cfg.train_downsample
-        self.train_pixels = sum((v.width // k) * (v.height // k) for v in self.ds.train_views)
+        self.train_pixels = sum(v.width * v.height for v in self.ds.train_views)
         self.cfg = self.cfg.with_budget(self.train_pixels)
 
     @property
@@ -391,8 +375,7 @@ class Trainer:
         from . import metrics as M
         from .evaluate import evaluate
 
-        views = self.ds.test_views or self.ds.train_views
-        m = evaluate(self.integ_for_eval(), views, write=False)["metrics"]
+        m = evaluate(self.integ_for_eval(), self.eval_views(), write=False)["metrics"]
         row = {"iteration": self.it, "epoch": self.epoch,
                "train_s": self.elapsed, "gaussians": sum(len(s) for s in self.active_sets().values()),
                **{k: m.get(k, float("nan")) for k in M.METRICS}}
@@ -405,6 +388,17 @@ class Trainer:
         w.writerows(self.report["convergence"])
         atomic_write_text(self.run_dir / "convergence.csv", buf.getvalue())
         return row
+
+    def eval_views(self):
+        """The test views (the training views when there are none) at the training resolution, or at the
+        dataset's full resolution with ``eval_full``."""
+        if self.cfg.eval_full and self.cfg.downscale > 1:
+            if getattr(self, "_full_ds", None) is None:
+                self._full_ds = load_run_dataset(self.run_dir, self.cfg, full=True)
+            ds = self._full_ds
+        else:
+            ds = self.ds
+        return ds.test_views or ds.train_views
 
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
@@ -441,7 +435,7 @@ class Trainer:
         info = json.loads((self.run_dir / "run.json").read_text())
         self.scene_spec = read_scene(info["scene"]) if Path(info["scene"]).exists() else None
         if self.ds is None:
-            self.ds = load_dataset(info["dataset"])
+            self.ds = load_run_dataset(self.run_dir, self.cfg, log=self.log)
         self._set_budget()
         z = dict(np.load(path, allow_pickle=False))
         self.it, self.elapsed = int(z["iteration"]), float(z["elapsed"])
@@ -465,7 +459,7 @@ class Trainer:
         rows = self.history
         if rows:
             keys = ["iteration", "stage", *LOSS_NAMES, "rays_per_s", "gaussians", "share_reflection",
-                    "share_transmission", "mask_t"]
+                    "share_transmission", "mask_t", "gap_behind", "gap_front"]
             buf = io.StringIO()
             w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
             w.writeheader()

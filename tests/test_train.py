@@ -1,5 +1,6 @@
 """The optimisation: ray generation, chain rule, densify/prune bookkeeping, patch losses, resume, bad input, and one
 end-to-end run on a tiny generated room (CLI: scene helper -> optimize -> evaluate)."""
+import dataclasses
 import json
 import subprocess
 import sys
@@ -49,13 +50,14 @@ def test_pixel_rays_match_mitsuba_sensor(room):
     assert np.allclose(pixel_rays(v, px), ref, atol=1e-5)
 
 
-def test_train_downsample_bank(room, tmp_path):
-    """train_downsample = 2: coarse rays pass through the centres of 2 x 2 fine-pixel blocks, targets and priors are
-    block means, and a trainer with it runs (evaluation stays at full resolution)."""
+def test_downscale_bank(room, tmp_path):
+    """downscale = 2: the dataset's views have 2 x 2 fine-pixel blocks as pixels: rays through the blocks' centres,
+    photos and priors block means; a trainer with it trains and evaluates at that resolution (eval_full: at the
+    dataset's)."""
     from glint_mi.batch import RayBank
 
-    ds = load_dataset(room)
-    fine, coarse = RayBank(ds.train_views, room), RayBank(ds.train_views, room, downsample=2)
+    ds, half = load_dataset(room), load_dataset(room, downscale=2)
+    fine, coarse = RayBank(ds.train_views, room), RayBank(half.train_views, room)
     v = ds.train_views[0]
     h, w = v.height // 2, v.width // 2
     assert coarse.sizes[0] == (h, w) and coarse.offsets[-1] == sum((x.height // 2) * (x.width // 2)
@@ -71,14 +73,21 @@ def test_train_downsample_bank(room, tmp_path):
     mean = fd[:2 * h, :2 * w].reshape(h, 2, w, 2, 3).mean((1, 3))
     assert np.allclose(cd, mean / np.linalg.norm(mean, axis=-1, keepdims=True), atol=1e-5)
     assert np.allclose(np.linalg.norm(coarse.priors["normal"], axis=-1), 1, atol=1e-5)  # the room has priors
-    with pytest.raises(ConfigError, match="train_downsample"):
-        tiny_cfg(train_downsample=0)
-    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=3, train_downsample=2), scene=read_scene(room.parent / "scene.xml"),
+    d_fine = fine.priors["depth"][:v.height * v.width, 0].reshape(v.height, v.width)
+    assert np.allclose(coarse.priors["depth"][:h * w, 0].reshape(h, w),
+                       d_fine[:2 * h, :2 * w].reshape(h, 2, w, 2).mean((1, 3)), rtol=1e-5)
+    gt, gt_half = v.load_gt(), half.train_views[0].load_gt()
+    assert gt_half["rgb"].shape == (h, w, 3)
+    assert np.allclose(gt_half["glass"], gt["glass"][:2 * h, :2 * w].reshape(h, 2, w, 2).mean((1, 3)))
+    with pytest.raises(ConfigError, match="downscale"):
+        tiny_cfg(downscale=0)
+    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=3, downscale=2), scene=read_scene(room.parent / "scene.xml"),
                  log=lambda *a: None)
-    assert tr.bank.sizes[0] == (h, w)
+    assert tr.bank.sizes[0] == (h, w) and tr.eval_views()[0].width == w
     r = tr.train(progress=False)
     assert r["iterations"] == 3 and all(np.isfinite(s.means).all() for s in tr.sets.values())
-
+    tr.cfg = dataclasses.replace(tr.cfg, eval_full=True)
+    assert tr.eval_views()[0].width == v.width
 
 def test_raw_gradients_chain_rule_matches_finite_differences(rng):
     """A linear functional of the renderer's arrays: raw_gradients == central FD through to_mitsuba (1e-3 rel)."""
@@ -377,7 +386,7 @@ def test_epochs_budget_sets_iterations(room, tmp_path):
     again = Trainer(tmp_path / "e", cfg, resume=True, log=lambda *a: None)
     assert again.cfg.iterations == want and again.strategy.cfg.iterations == want
     # half-resolution training: a quarter of the pixels, so a quarter of the rays for the same epochs
-    half = Trainer(tmp_path / "h", tiny_cfg(epochs=3.0, patches=4, train_downsample=2), scene=spec,
+    half = Trainer(tmp_path / "h", tiny_cfg(epochs=3.0, patches=4, downscale=2), scene=spec,
                    log=lambda *a: None)
     assert half.cfg.iterations == math.ceil(3.0 * sum((v.width // 2) * (v.height // 2)
                                                       for v in load_dataset(room).train_views) / 256)

@@ -277,7 +277,8 @@ def _triangulate(folder: Path, cams: list[Camera], scale: float):
     cameras' own pixels."""
     from .sfm import triangulate_known_poses
 
-    xyz, rgb, stats, tracks = triangulate_known_poses(folder / "sfm", [c.scaled(scale) for c in cams])
+    big = [c.scaled(scale) for c in cams]
+    xyz, rgb, stats, tracks = triangulate_known_poses([folder / "sfm" / "images" / f"{c.name}.png" for c in big], big)
     return xyz, rgb, stats, {k: (xy / scale, rows) for k, (xy, rows) in tracks.items()}
 
 

@@ -1,8 +1,4 @@
-"""Geometry and albedo priors: readers for per-view prior maps, and imperfect priors derived from ground truth.
-
-Layout: ``priors/{depth,normal,albedo}/<view>.{npy,exr,png}`` beside the images. Depth priors are relative (any
-scale and shift: the depth loss solves for them); normal priors are unit vectors in camera space, OpenCV axes
-(x right, y down, z forward); albedo priors are linear RGB in [0, 1].
+"""Imperfect priors derived from ground truth for generated scenes (the readers: :mod:`glint_mi.data.priors`).
 
 Derived priors mimic monocular estimators, so that results made with them are meaningful (and are labelled:
 ``priors/PRIORS.json`` says ``"derived_from_ground_truth": true`` with every corruption parameter):
@@ -18,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-KINDS = ("depth", "normal", "albedo")
+from glint_mi.data.priors import KINDS, PriorError, load_prior, prior_conventions, priors_are_derived  # noqa: F401
 
 
 @dataclasses.dataclass
@@ -32,49 +28,6 @@ class Corruption:
     glass_albedo: float = 0.02           # what the estimator reports on glass
     see_through_glass: float = 1.0       # probability, per view, that depth/normal see through the glass (real
                                          # estimators flicker between the glass and what is behind it)
-
-
-class PriorError(ValueError):
-    pass
-
-
-def load_prior(root: Path, view, kind: str) -> np.ndarray | None:
-    """The ``kind`` prior of ``view`` ([H,W] depth, [H,W,3] normal or albedo), or None when absent."""
-    if kind not in KINDS:
-        raise PriorError(f"unknown prior kind '{kind}'; use one of {KINDS}.")
-    folder = Path(root) / "priors" / kind
-    for ext in (".npy", ".exr", ".png"):
-        p = folder / f"{view.name}{ext}"
-        if p.exists():
-            break
-    else:
-        return None
-    if ext == ".npy":
-        arr = np.load(p)
-    elif ext == ".exr":
-        import OpenEXR
-
-        with OpenEXR.File(str(p), separate_channels=True) as f:
-            ch = {k: np.array(v.pixels) for k, v in f.channels().items()}
-        names = {"depth": (("Z",), ("Y",), ("R",)), "normal": (("N.X", "N.Y", "N.Z"), ("X", "Y", "Z"), ("R", "G", "B")),
-                 "albedo": (("R", "G", "B"),)}[kind]
-        found = next((n for n in names if all(c in ch for c in n)), None)
-        if found is None:
-            raise PriorError(f"{p}: channels {sorted(ch)}; a {kind} prior needs one of {list(names)}.")
-        arr = ch[found[0]] if kind == "depth" else np.stack([ch[c] for c in found], -1)
-    else:
-        from PIL import Image
-
-        arr = np.asarray(Image.open(p), np.float32) / (65535.0 if kind == "depth" else 255.0)
-        if kind == "normal":
-            arr = arr[..., :3] * 2 - 1
-    arr = np.asarray(arr, np.float32)
-    want = (view.height, view.width) if kind == "depth" else (view.height, view.width, 3)
-    if arr.shape != want:
-        raise PriorError(f"{p}: shape {arr.shape}, expected {want} for view {view.name}; resize the prior.")
-    if not np.isfinite(arr).all():
-        raise PriorError(f"{p}: contains NaN/Inf; mark invalid pixels with 0 instead.")
-    return arr
 
 
 def _blur(x, sigma):
@@ -166,9 +119,3 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption: Corruption | None 
         record["views"][v.name] = {"depth_scale": float(a), "depth_shift": float(b), "sees_through_glass": through}
     (out / "PRIORS.json").write_text(json.dumps(record, indent=1))
     return out
-
-
-def priors_are_derived(root: Path) -> bool:
-    """True when the dataset's priors were derived from ground truth (results must say so)."""
-    p = Path(root) / "priors" / "PRIORS.json"
-    return p.exists() and bool(json.loads(p.read_text()).get("derived_from_ground_truth"))

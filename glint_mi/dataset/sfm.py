@@ -2,7 +2,7 @@
 pose error against the truth (CPU SIFT, exhaustive matching)."""
 from __future__ import annotations
 
-import shutil
+import contextlib
 import tempfile
 from pathlib import Path
 
@@ -11,44 +11,93 @@ import numpy as np
 from .cameras import Camera, colmap_pose, qvec_to_rotmat
 
 
-def _extract_and_match(db: Path, images: Path, names: list[str], cam: Camera):
+@contextlib.contextmanager
+def quiet_colmap(level: int = 2):
+    """COLMAP's log (hundreds of lines per run) down to errors only while the block runs."""
+    import pycolmap
+
+    old = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = level
+    try:
+        yield
+    finally:
+        pycolmap.logging.minloglevel = old
+
+
+def _extract_and_match(db: Path, images: Path, names: list[str], cams: list[Camera], max_image_size: int = 1600):
+    """SIFT (CPU) on ``names`` in ``images`` and exhaustive matching into the database ``db``. One camera when all
+    views share intrinsics (SINGLE), else one per image; the reconstruction sets the true intrinsics anyway."""
     import pycolmap
 
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "PINHOLE"
-    reader.camera_params = f"{cam.fx},{cam.fy},{cam.cx},{cam.cy}"
-    pycolmap.extract_features(db, images, image_names=names, camera_mode=pycolmap.CameraMode.SINGLE,
-                              reader_options=reader, device=pycolmap.Device.cpu)
+    shared = all(np.allclose(c.K, cams[0].K) and (c.width, c.height) == (cams[0].width, cams[0].height)
+                 for c in cams)
+    if shared:
+        c = cams[0]
+        reader.camera_params = f"{c.fx},{c.fy},{c.cx},{c.cy}"
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.max_image_size = max_image_size
+    extraction.num_threads = 2
+    pycolmap.extract_features(db, images, image_names=names,
+                              camera_mode=pycolmap.CameraMode.SINGLE if shared else pycolmap.CameraMode.PER_IMAGE,
+                              reader_options=reader, extraction_options=extraction, device=pycolmap.Device.cpu)
     pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
 
 
-def triangulate_known_poses(folder: Path, cams: list[Camera]) -> tuple[np.ndarray, np.ndarray, dict, dict]:
-    """SIFT + exhaustive matching + triangulation with the true poses: ([P,3] xyz, [P,3] uint8 rgb, stats, tracks);
-    tracks: per camera name, the pixel positions [n,2] (in these cameras' pixels) of its features that triangulated
-    and the rows [n] of their points in xyz."""
+@contextlib.contextmanager
+def _linked(images: list[Path], cams: list[Camera]):
+    """A temporary folder holding ``<camera name><suffix>`` links to ``images`` (COLMAP reads one folder, by
+    name): any image names, formats and folders."""
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp) / "images"
+        folder.mkdir()
+        names = []
+        for p, c in zip(images, cams):
+            name = f"{c.name}{Path(p).suffix.lower()}"
+            (folder / name).symlink_to(Path(p).resolve())
+            names.append(name)
+        yield Path(tmp), folder, names
+
+
+def triangulate_known_poses(images: list[Path], cams: list[Camera], max_image_size: int = 1600
+                            ) -> tuple[np.ndarray, np.ndarray, dict, dict]:
+    """SIFT + exhaustive matching + triangulation with the known poses ``cams`` (pinhole, at the resolution of
+    ``images``, one file per camera, any format Pillow and COLMAP read): ([P,3] xyz, [P,3] uint8 rgb, stats,
+    tracks); tracks: per camera name, the pixel positions [n,2] (in these cameras' pixels) of its features that
+    triangulated and the rows [n] of their points in xyz. Raises RuntimeError with one line on failure."""
     import pycolmap
 
-    images = folder / "images"
-    names = [f"{c.name}.png" for c in cams]
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
+    with _linked(images, cams) as (tmp, img_dir, names), quiet_colmap():
         db_path = tmp / "database.db"
-        _extract_and_match(db_path, images, names, cams[0])
+        _extract_and_match(db_path, img_dir, names, cams, max_image_size)
         db = pycolmap.Database.open(db_path)
+        by_name = dict(zip(names, cams))
+        db_images = db.read_all_images()
+        if len(db_images) < 2:
+            db.close()
+            raise RuntimeError(f"SIFT read {len(db_images)} of {len(names)} images")
         rec = pycolmap.Reconstruction()
-        for camera in db.read_all_cameras():
-            rec.add_camera_with_trivial_rig(camera)
-        by_name = {f"{c.name}.png": c for c in cams}
-        for image in db.read_all_images():
-            q, t = colmap_pose(by_name[image.name])
-            R = qvec_to_rotmat(q)
+        seen_cams = set()
+        for image in db_images:
+            c = by_name[image.name]
+            if image.camera_id not in seen_cams:
+                cam = pycolmap.Camera(model="PINHOLE", width=c.width, height=c.height,
+                                      params=[c.fx, c.fy, c.cx, c.cy], camera_id=image.camera_id)
+                rec.add_camera_with_trivial_rig(cam)
+                seen_cams.add(image.camera_id)
+            q, t = colmap_pose(c)
             im = pycolmap.Image(name=image.name, camera_id=image.camera_id, image_id=image.image_id)
-            rec.add_image_with_trivial_frame(im, pycolmap.Rigid3d(np.column_stack([R, t])))
+            rec.add_image_with_trivial_frame(im, pycolmap.Rigid3d(np.column_stack([qvec_to_rotmat(q), t])))
         n_matches = db.num_matches()
+        n_keypoints = sum(db.num_keypoints_for_image(im.image_id) for im in db_images)
         db.close()
+        if n_matches == 0:
+            raise RuntimeError(f"no feature matches between the {len(names)} images ({n_keypoints} SIFT keypoints "
+                               f"in all; images too small, too blurry or without texture)")
         out = tmp / "tri"
         out.mkdir()
-        tri = pycolmap.triangulate_points(rec, db_path, images, out)
+        tri = pycolmap.triangulate_points(rec, db_path, img_dir, out)
         pts = tri.points3D
         row = {pid: i for i, pid in enumerate(pts)}
         tracks = {}
@@ -58,9 +107,12 @@ def triangulate_known_poses(folder: Path, cams: list[Camera]) -> tuple[np.ndarra
                                              np.array([o[1] for o in obs], np.int64))
     xyz = np.array([p.xyz for p in pts.values()]).reshape(-1, 3)
     rgb = np.array([p.color for p in pts.values()], np.uint8).reshape(-1, 3)
-    stats = {"points3D": int(len(xyz)), "mean_track_length": float(tri.compute_mean_track_length()) if len(xyz) else 0.0,
-             "mean_reprojection_error_px": float(tri.compute_mean_reprojection_error()) if len(xyz) else 0.0,
-             "matches": int(n_matches)}
+    if not len(xyz):
+        raise RuntimeError(f"{n_matches} image pairs matched but no point triangulated (poses inconsistent with the "
+                           f"images, or too little parallax)")
+    stats = {"points3D": int(len(xyz)), "mean_track_length": float(tri.compute_mean_track_length()),
+             "mean_reprojection_error_px": float(tri.compute_mean_reprojection_error()),
+             "matches": int(n_matches), "keypoints": int(n_keypoints)}
     return xyz, rgb, stats, tracks
 
 
@@ -79,11 +131,9 @@ def full_sfm_pose_error(folder: Path, cams: list[Camera]) -> dict:
     """Incremental SfM (poses unknown), aligned to the truth by a similarity on camera centres; reports errors."""
     import pycolmap
 
-    images = folder / "images"
-    names = [f"{c.name}.png" for c in cams]
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
-        _extract_and_match(tmp / "database.db", images, names, cams[0])
+    files = [folder / "images" / f"{c.name}.png" for c in cams]
+    with _linked(files, cams) as (tmp, images, names), quiet_colmap():
+        _extract_and_match(tmp / "database.db", images, names, cams)
         (tmp / "sfm").mkdir()
         recs = pycolmap.incremental_mapping(tmp / "database.db", images, tmp / "sfm")
     if not recs:

@@ -1,0 +1,139 @@
+"""Per-view geometry and albedo priors as estimators write them: ``priors/{depth,normal,albedo}/<view>.<ext>``.
+
+Files: ``.npy`` (float arrays), ``.exr`` (float; depth in Z, Y or R; normals in N.X N.Y N.Z, X Y Z or R G B; albedo
+in R G B), ``.png`` / ``.tif`` (8- or 16-bit; normals and albedo [0, 1]-encoded). ``priors/PRIORS.json`` names the
+conventions (every key optional; defaults in brackets):
+
+    {"depth":  {"type": "depth" | "disparity"},      # [depth]: metric or affine-invariant depth (any scale and
+                                                     #  shift: the loss fits them); disparity: affine-invariant
+                                                     #  inverse depth, as MiDaS / Depth Anything write it
+     "normal": {"frame": "opencv" | "opengl"},       # [opencv]: camera axes x right, y down, z forward;
+                                                     #  opengl: x right, y up, z backward. Facing the camera.
+     "albedo": {"space": "linear" | "srgb"}}         # [linear for float files, srgb for 8/16-bit images]
+
+A map at the view's size is used as it is; at the dataset's full size it is block-averaged to a downscaled view;
+any other size is refused, naming the file. 0 marks an invalid depth or normal pixel.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DatasetError
+from .images import fit_to
+
+KINDS = ("depth", "normal", "albedo")
+EXTS = (".npy", ".exr", ".png", ".tif", ".tiff")
+DEPTH_TYPES = ("depth", "disparity")
+NORMAL_FRAMES = ("opencv", "opengl")
+
+
+class PriorError(DatasetError):
+    """Bad prior file or PRIORS.json; the message names the file and the fix."""
+
+
+def prior_conventions(root: Path) -> dict:
+    """The conventions of ``root``/priors/PRIORS.json, validated: {'depth': 'depth'|'disparity', 'normal':
+    'opencv'|'opengl', 'albedo': 'linear'|'srgb'|None (by file type)}, plus the file's own record."""
+    p = Path(root) / "priors" / "PRIORS.json"
+    record = {}
+    if p.exists():
+        try:
+            record = json.loads(p.read_text())
+        except json.JSONDecodeError as e:
+            raise PriorError(f"{p}: not valid JSON ({e}).") from None
+    depth = str((record.get("depth") or {}).get("type", "depth"))
+    frame = str((record.get("normal") or {}).get("frame", "opencv"))
+    space = (record.get("albedo") or {}).get("space")
+    if depth not in DEPTH_TYPES:
+        raise PriorError(f"{p}: depth.type = {depth!r}; use 'depth' (metric or affine-invariant depth) or "
+                         f"'disparity' (affine-invariant inverse depth, MiDaS / Depth Anything).")
+    if frame not in NORMAL_FRAMES:
+        raise PriorError(f"{p}: normal.frame = {frame!r}; use 'opencv' (x right, y down, z forward) or 'opengl' "
+                         f"(x right, y up, z backward).")
+    if space not in (None, "linear", "srgb"):
+        raise PriorError(f"{p}: albedo.space = {space!r}; use 'linear' or 'srgb'.")
+    return {"depth": depth, "normal": frame, "albedo": space, "record": record}
+
+
+def _read_image(p: Path) -> np.ndarray:
+    """An 8/16-bit image as floats in [0, 1] ([H,W] or [H,W,C])."""
+    from PIL import Image
+
+    try:
+        with Image.open(p) as im:
+            im.load()
+            a = np.asarray(im)
+    except (OSError, SyntaxError, ValueError) as e:
+        raise PriorError(f"{p}: cannot decode ({e}); write the prior again.") from None
+    if a.dtype == np.uint8:
+        return a.astype(np.float32) / 255.0
+    if a.dtype in (np.uint16, np.int32) or a.dtype.kind in "iu":
+        return a.astype(np.float32) / 65535.0
+    return a.astype(np.float32)
+
+
+def _read_exr(p: Path, kind: str) -> np.ndarray:
+    import OpenEXR
+
+    with OpenEXR.File(str(p), separate_channels=True) as f:
+        ch = {k: np.array(v.pixels) for k, v in f.channels().items()}
+    names = {"depth": (("Z",), ("Y",), ("R",)), "normal": (("N.X", "N.Y", "N.Z"), ("X", "Y", "Z"), ("R", "G", "B")),
+             "albedo": (("R", "G", "B"),)}[kind]
+    found = next((n for n in names if all(c in ch for c in n)), None)
+    if found is None:
+        raise PriorError(f"{p}: channels {sorted(ch)}; a {kind} prior needs one of {list(names)}.")
+    return ch[found[0]] if kind == "depth" else np.stack([ch[c] for c in found], -1)
+
+
+def prior_file(root: Path, view, kind: str) -> Path | None:
+    folder = Path(root) / "priors" / kind
+    for ext in EXTS:
+        p = folder / f"{view.name}{ext}"
+        if p.exists():
+            return p
+    return None
+
+
+def load_prior(root: Path, view, kind: str, conventions: dict | None = None) -> np.ndarray | None:
+    """The ``kind`` prior of ``view`` at the view's resolution in glint_mi's conventions, or None when absent:
+    depth [H,W] (as the file's type says: depth or disparity; 0 = invalid), normal [H,W,3] unit vectors in OpenCV
+    camera axes facing the camera (0 = invalid), albedo [H,W,3] linear RGB."""
+    if kind not in KINDS:
+        raise PriorError(f"unknown prior kind '{kind}'; use one of {KINDS}.")
+    p = prior_file(root, view, kind)
+    if p is None:
+        return None
+    conv = conventions or prior_conventions(root)
+    encoded = p.suffix.lower() in (".png", ".tif", ".tiff")
+    arr = np.load(p) if p.suffix == ".npy" else _read_exr(p, kind) if p.suffix == ".exr" else _read_image(p)
+    arr = np.asarray(arr, np.float32)
+    if kind == "depth" and arr.ndim == 3:
+        arr = arr[..., 0]
+    if kind != "depth":
+        if arr.ndim != 3 or arr.shape[-1] < 3:
+            raise PriorError(f"{p}: shape {arr.shape}; a {kind} prior needs 3 channels.")
+        arr = arr[..., :3]
+        if kind == "normal" and encoded:  # [0, 1]-encoded
+            arr = np.where(np.any(arr > 0, axis=-1, keepdims=True), arr * 2 - 1, 0.0)
+        if kind == "albedo" and (conv["albedo"] == "srgb" or (conv["albedo"] is None and encoded)):
+            arr = np.where(arr <= 0.04045, arr / 12.92, ((arr + 0.055) / 1.055) ** 2.4)
+    if not np.isfinite(arr).all():
+        raise PriorError(f"{p}: contains NaN/Inf; mark invalid pixels with 0 instead.")
+    try:
+        arr = fit_to(arr, view.height, view.width, getattr(view, "downscale", 1), str(p))
+    except DatasetError as e:
+        raise PriorError(str(e)) from None
+    if kind == "normal":
+        if conv["normal"] == "opengl":
+            arr = arr * np.array([1.0, -1.0, -1.0], np.float32)
+        n = np.linalg.norm(arr, axis=-1, keepdims=True)
+        arr = np.where(n > 0.5, arr / np.maximum(n, 1e-12), 0.0).astype(np.float32)
+    return np.asarray(arr, np.float32)
+
+
+def priors_are_derived(root: Path) -> bool:
+    """True when the dataset's priors were derived from ground truth (results must say so)."""
+    return bool(prior_conventions(root)["record"].get("derived_from_ground_truth"))

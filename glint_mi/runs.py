@@ -1,0 +1,49 @@
+"""Run folders: atomic file writes, the run error, and reading a run's dataset as the run read it."""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+
+class RunError(ValueError):
+    """Bad run folder / resume request; the message names the file and the fix."""
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    tmp = path.with_name(path.name + ".partial")
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    atomic_write_bytes(path, text.encode())
+
+
+def check_run_folder(run: Path) -> None:
+    """Refuse, before any work, a run folder that cannot be one: an existing file, or a folder that already holds
+    a run (continue it with --resume), or one that cannot be created."""
+    run = Path(run)
+    if run.exists() and not run.is_dir():
+        raise RunError(f"--out {run}: is a file, not a folder; choose another --out.")
+    if (run / "checkpoint.npz").exists():
+        raise RunError(f"{run}: already holds a run; continue it with --resume {run} or choose --out.")
+    parent = run if run.exists() else next((p for p in run.parents if p.exists()), Path("."))
+    if not os.access(parent, os.W_OK):
+        raise RunError(f"--out {run}: {parent} is not writable; choose another --out.")
+
+
+def load_run_dataset(run_dir: Path, cfg, full: bool = False, log=None):
+    """The dataset of a run folder, read as the run read it (``run.json``), at the training resolution or, with
+    ``full``, at its full resolution."""
+    from .data import load_dataset
+
+    info = json.loads((Path(run_dir) / "run.json").read_text())
+    opts = {**{"missing": "error"}, **info.get("dataset_options", {}), "downscale": 1 if full else cfg.downscale}
+    ds = load_dataset(info["dataset"], log=log, **opts)
+    if info.get("sparse"):  # the SfM model the run triangulated (its tracks feed the see-through cue)
+        ds.sparse, ds.tracks_distorted = Path(info["sparse"]), bool(info.get("tracks_distorted"))
+    return ds
