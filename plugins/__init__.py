@@ -17,10 +17,11 @@ def register() -> None:
         return
     import importlib
 
-    from . import glint_gaussians, glint_integrator
+    from . import glint_composite, glint_gaussians, glint_integrator, glint_march, glint_mesh
 
-    if _registered:  # the integrator class derives from the variant's ADIntegrator: rebuild it for this variant
-        importlib.reload(glint_integrator)
+    if _registered:  # the integrator derives from the variant's ADIntegrator and Composite holds its array types:
+        for module in (glint_composite, glint_march, glint_mesh, glint_integrator):  # rebuild them for this variant
+            importlib.reload(module)
     glint_gaussians.register()
     glint_integrator.register()
     _registered.add(variant)

@@ -103,12 +103,14 @@ from __future__ import annotations
 
 import drjit as dr
 import mitsuba as mi
-import numpy as np
 
 from glint_mi import conventions as cv
 from glint_mi import native
 
 from . import glint_gaussians
+from .glint_composite import Composite, GaussianSetRef, _widen  # noqa: F401  (re-exported)
+from .glint_march import KBUFFER_BYTES, GaussianPasses  # noqa: F401
+from .glint_mesh import first_surface, is_glass, trace_meshes  # noqa: F401
 
 AOV_GROUPS = {
     "depth": ["depth"],
@@ -123,99 +125,7 @@ AOV_GROUPS = {
 }
 DEFAULT_AOVS = "depth,normal,transparency,interface,reflection,transmission,alpha"
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1.0 / 255.0, 0.99, 1e-4
-KBUFFER_BYTES = 256 * 2 ** 20
 BLENDS = ("fresnel", "envgs", "alpha")
-
-
-class GaussianSetRef:
-    """One set as the integrator sees it: its shape, kernel and the sub-scene holding its BVH."""
-
-    def __init__(self, role: str, shape):
-        meta = glint_gaussians.info(shape)
-        if meta.role is not None and meta.role != role:
-            raise ValueError(f"glint: the shape nested as '{role}' declares role '{meta.role}'.")
-        self.role, self.shape, self.kernel, self.empty = role, shape, meta.kernel, meta.empty
-        self.scene = mi.load_dict({"type": "scene", "gaussians": shape})
-        self.refresh()
-
-    def refresh(self) -> None:
-        """Recompute ``reach``, the longest shell diameter of the set (metres): a ray started that far behind its
-        origin enters every shell that contains the origin. An opaque Dr.Jit scalar, so kernels do not recompile
-        when it changes."""
-        params = mi.traverse(self.shape)
-        data = np.array(params["data"], np.float64).reshape(-1, 10)
-        reach = 2.0 * float(params["extent"]) * float(data[:, 3:6].max(initial=0.0)) if len(data) else 0.0
-        self.reach = dr.opaque(mi.Float, reach * (1.0 + 1e-3) + 1e-6)
-        self._shells, self._data, self._extent = None, data, float(params["extent"])
-
-    def native(self) -> "native.ShellSet":
-        """The set's shells in the native k-buffer traversal's Embree scene (built on first use after a change)."""
-        if self._shells is None:
-            self._shells = native.ShellSet(self._data, self._extent)
-        return self._shells
-
-
-class Composite:
-    """Accumulators of one alpha-compositing pass: sums over hits of w_i * (c, 1, t, n, beta, tau).
-
-    A Dr.Jit struct, so it can be loop state; arithmetic is field-wise.
-    """
-
-    DRJIT_STRUCT = {"C": mi.Color3f, "A": mi.Float, "Dt": mi.Float, "N": mi.Vector3f, "B": mi.Float, "Tau": mi.Float}
-    FIELDS = tuple(DRJIT_STRUCT)
-
-    def __init__(self, C=None, A=None, Dt=None, N=None, B=None, Tau=None):
-        self.C = mi.Color3f(0.0) if C is None else C
-        self.A = mi.Float(0.0) if A is None else A
-        self.Dt = mi.Float(0.0) if Dt is None else Dt
-        self.N = mi.Vector3f(0.0) if N is None else N
-        self.B = mi.Float(0.0) if B is None else B
-        self.Tau = mi.Float(0.0) if Tau is None else Tau
-
-    @staticmethod
-    def of_hit(w, t, n, c, beta, tau):
-        return Composite(w * c, mi.Float(w), w * t, w * n, w * beta, w * tau)
-
-    def map(self, fn, other=None):
-        if other is None:
-            return Composite(*(fn(getattr(self, f)) for f in self.FIELDS))
-        return Composite(*(fn(getattr(self, f), getattr(other, f)) for f in self.FIELDS))
-
-    def __add__(self, other):
-        return self.map(lambda a, b: a + b, other)
-
-    def __sub__(self, other):
-        return self.map(lambda a, b: a - b, other)
-
-    def scaled(self, s):
-        return self.map(lambda a: a * s)
-
-    def detached(self):
-        return self.map(dr.detach)
-
-    def leaf(self):
-        """A detached copy with gradients enabled (an AD input for the shading head)."""
-        c = self.detached()
-        for f in self.FIELDS:
-            dr.enable_grad(getattr(c, f))
-        return c
-
-    def grad(self):
-        return self.map(dr.grad)
-
-    def dot(self, other):
-        """sum over fields of <self.f, other.f> per ray (adjoint . value)."""
-        return (dr.dot(self.C, other.C) + self.A * other.A + self.Dt * other.Dt + dr.dot(self.N, other.N)
-                + self.B * other.B + self.Tau * other.Tau)
-
-    @property
-    def depth(self):  # expected distance along the ray
-        return dr.select(self.A > 0, self.Dt / dr.maximum(self.A, 1e-12), 0.0)
-
-    @property
-    def normal(self):  # normalised, 0 where nothing was hit
-        n = dr.norm(self.N)
-        return dr.select(n > 1e-12, self.N / dr.maximum(n, 1e-12), mi.Vector3f(0.0))
 
 
 def schlick(cos_theta, f0):
@@ -250,19 +160,10 @@ def _group_value(group: str, vals: list):
     return mi.Color3f(*vals)
 
 
-def _ray_epsilon(p):
-    """Origin offset after a hit: ~8 float32 ulps of the coordinates, at least 1e-6 m (stable from 1e-3 to 1e4 m)."""
-    return dr.maximum(1e-6, dr.max(dr.abs(p)) * 1e-6)
+class GlintIntegrator(GaussianPasses):
+    """The image model. One set's passes are :class:`~.glint_march.GaussianPasses`, mesh mode
+    :func:`~.glint_mesh.trace_meshes`."""
 
-
-def _widen(x, n: int):
-    """``x`` (a Dr.Jit array or struct) with ``n`` entries: a width-1 value is broadcast."""
-    if dr.width(x) == n:
-        return x
-    return dr.gather(type(x), x, dr.zeros(mi.UInt32, n))
-
-
-class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
     def __init__(self, props):
         super().__init__(props)
         self.max_depth = int(props.get("max_depth", 64))
@@ -379,7 +280,10 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         if self.mesh_mode:
             if not primal:
                 raise RuntimeError("glint: mesh mode (no Gaussian sets) renders references only; it has no gradients.")
-            out = self.trace_meshes(scene, sampler, mi.Ray3f(ray), mi.Bool(active))
+            if self._path is None:
+                self._path = mi.load_dict({"type": "path", "max_depth": self.max_depth, "hide_emitters": False})
+            out = trace_meshes(self._path, scene, sampler, mi.Ray3f(ray), mi.Bool(active), self._forward,
+                               self.max_hits)
         else:
             with dr.resume_grad(when=not primal):
                 out = self.trace(mi.Ray3f(dr.detach(ray)), mi.Bool(active), ad=not primal,
@@ -439,265 +343,6 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         if group == "trans_direct":
             return [*v[0], v[1], *v[2], v[3]]
         return list(v)
-
-    # ------------------------------------------------------------- kernels
-    def _eval_kernel(self, gs: GaussianSetRef, prim_index, o0, d, active):
-        """Alpha, distance along the ray, facing normal and attributes of hit primitives (differentiable)."""
-        shape = gs.shape
-        si, e, center, rot = self._frame(gs, prim_index, active)
-        s = mi.Vector3f(shape.eval_attribute_3("kernel_scales", si, active))
-        opacity = shape.eval_attribute_1("opacities", si, active)
-
-        ol = rot.T @ (o0 - center)  # ray in the kernel's local frame
-        dl = rot.T @ d
-        if gs.kernel == "surfel":
-            ok = dr.abs(dl.z) > 1e-7
-            t = dr.select(ok, -ol.z / dr.select(ok, dl.z, 1.0), 0.0)
-            u = ol + t * dl
-            sx, sy = dr.maximum(s.x, 1e-30), dr.maximum(s.y, 1e-30)
-            power = dr.square(u.x / sx) + dr.square(u.y / sy)
-            n_local = mi.Vector3f(0, 0, 1)
-        else:
-            sc = dr.maximum(s, 1e-30)
-            ols, dls = ol / sc, dl / sc
-            dd = dr.squared_norm(dls)
-            ok = dd > 0
-            t = dr.select(ok, -dr.dot(ols, dls) / dr.select(ok, dd, 1.0), 0.0)
-            power = dr.squared_norm(ols + t * dls)
-            zmin = (s.z <= s.x) & (s.z <= s.y)
-            ymin = ~zmin & (s.y <= s.x)
-            n_local = dr.select(zmin, mi.Vector3f(0, 0, 1), dr.select(ymin, mi.Vector3f(0, 1, 0), mi.Vector3f(1, 0, 0)))
-        n = rot @ n_local
-        n = dr.select(dr.dot(n, d) > 0, -n, n)
-        G = dr.exp(-0.5 * power)
-        alpha = dr.minimum(opacity * G, self.alpha_max)
-        ok &= active & (t > 0) & dr.isfinite(alpha) & (alpha >= self.alpha_min)
-        alpha = dr.select(ok, alpha, 0.0)
-
-        sh = shape.eval_attribute_x("sh_coeffs", si, active)
-        degree = cv.sh_degree_from_coeffs(len(sh))
-        basis = dr.sh_eval(d, degree)
-        c = mi.Color3f(0.0)
-        for k, y in enumerate(basis):
-            c += y * mi.Color3f(sh[3 * k], sh[3 * k + 1], sh[3 * k + 2])
-        c = dr.maximum(c + 0.5, 0.0)
-        beta = shape.eval_attribute_1("specular", si, active) if shape.has_attribute("specular") else mi.Float(0)
-        tau = shape.eval_attribute_1("transparency", si, active) if shape.has_attribute("transparency") else mi.Float(0)
-        zero3 = mi.Vector3f(0.0)
-        return (alpha, dr.select(ok, t, 0.0), dr.select(ok, n, zero3), dr.select(ok, c, mi.Color3f(0.0)),
-                dr.select(ok, beta, 0.0), dr.select(ok, tau, 0.0))
-
-    def march(self, gs: GaussianSetRef, o0, d, active, ad: bool = False, total: Composite = None,
-              adjoint: Composite = None, ray_grad: bool = False, weight=None, budget=None, record: bool = False,
-              hit_list=None, info: dict | None = None):
-        """Front-to-back alpha compositing of one set along rays (o0, d).
-
-        ``weight`` (per ray, primal) is how much of this pass reaches the pixel: the pass stops once
-        weight * T < transmittance_min, the same bound on the missed radiance as the camera pass has.
-
-        Forward (``adjoint`` None): returns the :class:`Composite`; with ``ad`` the loop is evaluated so that plain
-        Dr.Jit AD runs through it (d and o0 may carry gradients).
-        Replay (``adjoint`` given, ``total`` = the forward Composite): re-traces the same hits and back-propagates the
-        adjoint of the totals into the set's parameters hit by hit, in constant memory. Returns the adjoints of
-        the ray origin and direction (zero unless ``ray_grad``).
-
-        Stored hit lists (exact, a speed-up of the replay): a forward with ``record`` also writes the Gaussians it
-        composited, per ray in order, into ``info["list"]`` = (indices [rays x max_hits], count [rays]); a replay
-        given that ``hit_list`` walks the list instead of re-running the BVH queries (same hits, same order, same
-        arithmetic). Traversal is most of a training step (benchmarks/profile_step.py), the replay half of it.
-
-        Profiling (benchmarks/profile_step.py): a pass given an ``info`` dict leaves its per-ray hit count there
-        (``info["hits"]``; never on ``self``, which is loop state of Dr.Jit's symbolic loops);
-        ``budget`` (per-ray hit counts) makes the pass a traversal only: the same BVH queries and stepping, stopped
-        after ``budget`` hits, with no kernel evaluated (returns an empty Composite).
-        """
-        if adjoint is not None and hit_list is not None:
-            return self._replay_list(gs, o0, d, active, total, adjoint, ray_grad, hit_list)
-        listed = slot = None
-        if record:
-            n_rays = max(dr.width(active), dr.width(o0), dr.width(d))
-            slot = dr.arange(mi.UInt32, n_rays) * self.max_hits
-            listed = dr.zeros(mi.UInt32, n_rays * self.max_hits)
-        march = self._march_kbuffer if (self.kbuffer and not ad) else self._march_bvh
-        acc, hits, count = march(gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot)
-        if info is not None:
-            info["hits"] = hits
-            info["list"] = (listed, count) if record else None
-        return acc
-
-    def _t_stop(self, weight):
-        """Per ray, the transmittance at which a pass stops: weight * T < transmittance_min (weight None: 1)."""
-        if weight is None:
-            return mi.Float(self.transmittance_min)
-        return dr.minimum(self.transmittance_min / dr.maximum(dr.detach(weight), self.transmittance_min), 1.0)
-
-    @dr.syntax
-    def _march_bvh(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot):
-        replay = adjoint is not None
-        t_stop = self._t_stop(weight)
-        origin = mi.Point3f(dr.detach(o0))
-        dd = mi.Vector3f(dr.detach(d))
-        # Mitsuba's shell test never reports a shell that contains the ray origin: walk from one shell diameter
-        # behind the origin, and of the shells entered before the origin keep those that contain it.
-        o = origin - dd * gs.reach if self.inside_origins else mi.Point3f(origin)
-        T = mi.Float(1.0)
-        acc = Composite()
-        d_o, d_d = mi.Vector3f(0.0), mi.Vector3f(0.0)
-        hits = mi.UInt32(0)
-        last0, last1 = mi.UInt32(0xFFFFFFFF), mi.UInt32(0xFFFFFFFF)
-        count = mi.UInt32(0)
-        step = mi.Float(1.0)
-        active = mi.Bool(active)
-        while dr.hint(active, mode="evaluated" if ad else "symbolic", label=f"glint {gs.role}",
-                      exclude=[listed, slot]):  # a scatter target and a read-only index, not loop state
-            pi = gs.scene.ray_intersect_preliminary(mi.Ray3f(o, dd), coherent=False, active=active)
-            hit = active & pi.is_valid()
-            p = o + dd * pi.t
-            # Just past a shell entry the float32 shell test can report the same primitive again: each Gaussian
-            # counts once per pass (the last two are remembered) and the step grows until the ray leaves the band.
-            new = hit & (pi.prim_index != last0) & (pi.prim_index != last1)
-            # entered behind the origin: counts only if the shell holds the origin (and then not on the hit budget
-            # when it does not)
-            relevant = mi.Bool(True)
-            if self.inside_origins:
-                behind = new & (dr.dot(p - origin, dd) < 0)
-                relevant = ~behind | self._contains(gs, pi.prim_index, origin, behind)
-            fresh = new & relevant
-            if dr.hint(listed is not None, mode="scalar"):  # recording: no scatter in other kernels
-                dr.scatter(listed, pi.prim_index, slot + count, fresh)
-            count = count + mi.UInt32(dr.select(fresh, 1, 0))
-            if budget is None:
-                acc, alpha, g_o, g_d = self._hit(gs, pi.prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad)
-                d_o += g_o
-                d_d += g_d
-                T *= 1.0 - alpha
-            o = dr.select(hit, p + dd * (_ray_epsilon(p) * step), o)
-            step = dr.select(hit & ~new, step * 4.0, 1.0)
-            last1 = dr.select(new, last0, last1)
-            last0 = dr.select(new, pi.prim_index, last0)
-            hits += mi.UInt32(dr.select(relevant, 1, 0))
-            active = hit & (T > t_stop) & (hits < (self.max_hits if budget is None else budget))
-        return ((d_o, d_d) if replay else acc), hits, count
-
-    def _march_kbuffer(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot):
-        """:meth:`_march_bvh` with the native k-buffer traversal (``traversal``: kbuffer): rounds of one Embree
-        traversal per ray that lists its next ``kbuffer_k`` shell entries in order (shells that hold the origin
-        first: no walk back), each followed by a Dr.Jit loop that composites them with the same arithmetic and the
-        same stopping rule (T <= t_stop or the hit budget). Rays still going after a full buffer take another round."""
-        replay = adjoint is not None
-        n = max(dr.width(x) for x in (active, o0, d))
-        t_stop = self._t_stop(weight)
-        origin, dd = _widen(mi.Point3f(dr.detach(o0)), n), _widen(mi.Vector3f(dr.detach(d)), n)
-        active = _widen(mi.Bool(active), n)
-        t_stop = _widen(t_stop, n)
-        dr.eval(origin, dd, active, t_stop)
-        xyz = lambda v: np.stack([np.asarray(v.x), np.asarray(v.y), np.asarray(v.z)], axis=1)
-        O, D, go = xyz(origin), xyz(dd), np.asarray(active, dtype=bool).copy()
-        # a round holds 12 bytes per ray and entry (prims and t from the traversal, the prims again for Dr.Jit): at
-        # most KBUFFER_BYTES (a 1080p frame lists 10 entries per round)
-        shells, k = gs.native(), min(self.kbuffer_k, max(4, KBUFFER_BYTES // (12 * n)))
-        T, acc = dr.full(mi.Float, 1.0, n), _widen(Composite(), n)
-        d_o, d_d = dr.zeros(mi.Vector3f, n), dr.zeros(mi.Vector3f, n)
-        hits = dr.zeros(mi.UInt32, n)  # every listed entry composited is one hit: the list count is the hit count
-        t_prev, p_prev = np.full(n, -np.inf, np.float32), np.full(n, 0xFFFFFFFF, np.uint32)
-        rows = np.arange(n)
-        while go.any():
-            prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count())
-            T, acc, d_o, d_d, hits, more = self._kbuffer_round(
-                gs, mi.UInt32(prims.ravel()), mi.UInt32(cnt), k, o0, d, t_stop, total, adjoint, ray_grad, budget,
-                listed, slot, T, acc, d_o, d_d, hits)
-            dr.eval(T, acc, d_o, d_d, hits, more, listed)
-            last = np.maximum(cnt.astype(np.int64) - 1, 0)
-            t_prev = np.where(cnt > 0, ts[rows, last], t_prev)
-            p_prev = np.where(cnt > 0, prims[rows, last], p_prev)
-            go &= (cnt == k) & np.asarray(more, dtype=bool)
-        return ((d_o, d_d) if replay else acc), hits, hits
-
-    @dr.syntax
-    def _kbuffer_round(self, gs, prims, cnt, k_max, o0, d, t_stop, total, adjoint, ray_grad, budget, listed, slot,
-                       T, acc, d_o, d_d, hits):
-        """Composite one round's listed entries (``prims`` [rays x k_max], ``cnt`` per ray) in order."""
-        limit = self.max_hits if budget is None else budget
-        base = dr.arange(mi.UInt32, dr.width(cnt)) * k_max
-        k = mi.UInt32(0)
-        active = (k < cnt) & (T > t_stop) & (hits < limit)
-        while dr.hint(active, mode="symbolic", label=f"glint {gs.role} k-buffer", exclude=[listed, slot]):
-            prim = dr.gather(mi.UInt32, prims, base + k, active)
-            if dr.hint(listed is not None, mode="scalar"):  # recording: no scatter in other kernels
-                dr.scatter(listed, prim, slot + hits, active)
-            if budget is None:
-                acc, alpha, g_o, g_d = self._hit(gs, prim, o0, d, active, T, acc, total, adjoint, ray_grad)
-                d_o += g_o
-                d_d += g_d
-                T *= 1.0 - alpha
-            hits += mi.UInt32(dr.select(active, 1, 0))
-            k += 1
-            active &= (k < cnt) & (T > t_stop) & (hits < limit)
-        return T, acc, d_o, d_d, hits, (T > t_stop) & (hits < limit)
-
-    @dr.syntax
-    def _replay_list(self, gs: GaussianSetRef, o0, d, active, total, adjoint, ray_grad, hit_list):
-        """The replay of :meth:`march` over a stored hit list (no BVH query); returns the ray adjoints."""
-        listed, count = hit_list
-        slot = dr.arange(mi.UInt32, dr.width(count)) * self.max_hits
-        T = mi.Float(1.0)
-        acc = Composite()
-        d_o, d_d = mi.Vector3f(0.0), mi.Vector3f(0.0)
-        k = mi.UInt32(0)
-        active = mi.Bool(active) & (count > 0)
-        while dr.hint(active, mode="symbolic", label=f"glint {gs.role} list"):
-            prim = dr.gather(mi.UInt32, listed, slot + k, active)
-            acc, alpha, g_o, g_d = self._hit(gs, prim, o0, d, active, T, acc, total, adjoint, ray_grad)
-            d_o += g_o
-            d_d += g_d
-            T *= 1.0 - alpha
-            k += 1
-            active &= k < count
-        return d_o, d_d
-
-    @staticmethod
-    def _frame(gs: GaussianSetRef, prim_index, active):
-        """(interaction, packed ellipsoid record, centre, rotation) of the primitives ``prim_index`` of a set."""
-        si = dr.zeros(mi.SurfaceInteraction3f)
-        si.prim_index = prim_index
-        e = gs.shape.eval_attribute_x("ellipsoid", si, active)
-        q = mi.Quaternion4f(e[6], e[7], e[8], e[9])
-        qn = dr.norm(q)
-        q = dr.select(qn > 1e-12, q / dr.maximum(qn, 1e-12), mi.Quaternion4f(0, 0, 0, 1))
-        return si, e, mi.Point3f(e[0], e[1], e[2]), dr.quat_to_matrix(mi.Matrix3f, q)
-
-    @staticmethod
-    def _contains(gs: GaussianSetRef, prim_index, point, active):
-        """Whether the bounding shell of each hit primitive contains ``point`` (detached)."""
-        si, e, center, rot = GlintIntegrator._frame(gs, prim_index, active)
-        radius = gs.shape.eval_attribute_1("extent", si, active)
-        local = rot.T @ (point - center)
-        shell = dr.maximum(mi.Vector3f(e[3], e[4], e[5]) * radius, 1e-30)
-        return active & (dr.squared_norm(local / shell) < 1.0)
-
-    def _hit(self, gs, prim_index, o0, d, fresh, T, acc, total, adjoint, ray_grad):
-        """One hit: forward, add its weighted features to ``acc``; replay (``adjoint`` given), also back-propagate:
-        d(total)/d(params of this hit) = T d(alpha f) - S d(alpha) / (1 - alpha), with the suffix
-        S = total - prefix (everything behind this hit, all of it scaled by 1 - alpha).
-        Returns (new acc, alpha (detached in replay), origin adjoint, direction adjoint)."""
-        zero = mi.Vector3f(0.0)
-        if adjoint is None:
-            alpha, t, n, c, beta, tau = self._eval_kernel(gs, prim_index, o0, d, fresh)
-            return acc + Composite.of_hit(T * alpha, t, n, c, beta, tau), alpha, zero, zero
-        with dr.resume_grad():
-            o_l, d_l = mi.Point3f(dr.detach(o0)), mi.Vector3f(dr.detach(d))
-            if ray_grad:
-                dr.enable_grad(o_l, d_l)
-            alpha, t, n, c, beta, tau = self._eval_kernel(gs, prim_index, o_l, d_l, fresh)
-            alpha_d = dr.detach(alpha)
-            mine = Composite.of_hit(T * alpha, t, n, c, beta, tau)
-            prefix = acc + mine.detached()
-            suffix = (total - prefix).detached()
-            Lo = mine + suffix.scaled((1.0 - alpha) / (1.0 - alpha_d))
-            dr.backward_from(dr.select(fresh, adjoint.dot(Lo), 0.0), flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
-            g_o = mi.Vector3f(dr.grad(o_l)) if ray_grad else zero
-            g_d = dr.grad(d_l) if ray_grad else zero
-        return prefix, alpha_d, g_o, g_d
 
     # ------------------------------------------------------ Gaussian mode
     def _weights(self, I: Composite, d, active):
@@ -863,61 +508,6 @@ class GlintIntegrator(mi.ad.integrators.common.ADIntegrator):
         if trans and "trans_direct" in adjoints:
             self.march(trans, o, d, active, total=D, adjoint=gD, hit_list=lD)
 
-    # ----------------------------------------------------------- mesh mode
-    def _path_tracer(self):
-        if self._path is None:
-            self._path = mi.load_dict({"type": "path", "max_depth": self.max_depth, "hide_emitters": False})
-        return self._path
-
-    @dr.syntax
-    def _through_glass(self, scene, ray, active):
-        """Advance rays past every glass surface they meet; returns rays whose first hit is opaque (or none)."""
-        ray = mi.Ray3f(ray)
-        active = mi.Bool(active)
-        steps = mi.UInt32(0)
-        while dr.hint(active, label="glint skip glass"):
-            si = scene.ray_intersect(ray, active)
-            glass = active & is_glass(si)
-            ray[glass] = si.spawn_ray(ray.d)
-            steps += 1
-            active = glass & (steps < self.max_hits)
-        return ray
-
-    def trace_meshes(self, scene, sampler, ray, active) -> dict:
-        """First-order reference on a mesh scene: one Fresnel split at the first glass surface (primal only)."""
-        path = self._path_tracer()
-        si = scene.ray_intersect(ray, active)
-        glass = active & is_glass(si)
-        # Non-glass pixels first, so they consume the sampler exactly like a plain `path` render.
-        L_direct, _, _ = path.sample(scene, sampler, ray, None, active & ~glass)
-
-        ctx = mi.BSDFContext()
-        bsdf = si.bsdf()
-        # sample1 = 0 always picks the reflection lobe and 1 the transmission lobe; pdf is then F resp. 1 - F.
-        bs_r, w_r = bsdf.sample(ctx, si, 0.0, mi.Point2f(0.5), glass)
-        bs_t, w_t = bsdf.sample(ctx, si, 1.0 - 1e-6, mi.Point2f(0.5), glass)
-        ok_r = glass & (bs_r.pdf > 0) & mi.has_flag(bs_r.sampled_type, mi.BSDFFlags.Reflection)
-        ok_t = glass & (bs_t.pdf > 0) & (mi.has_flag(bs_t.sampled_type, mi.BSDFFlags.Transmission)
-                                         | mi.has_flag(bs_t.sampled_type, mi.BSDFFlags.Null))
-        F = dr.select(ok_r, bs_r.pdf, 0.0)
-        ray_r = self._through_glass(scene, si.spawn_ray(si.to_world(bs_r.wo)), ok_r)
-        ray_t = self._through_glass(scene, si.spawn_ray(si.to_world(bs_t.wo)), ok_t)
-        L_r, _, _ = path.sample(scene, sampler, ray_r, None, ok_r)
-        L_t, _, _ = path.sample(scene, sampler, ray_t, None, ok_t)
-        L_r = dr.select(ok_r, mi.Spectrum(w_r) * L_r, 0.0)
-        L_t = dr.select(ok_t, mi.Spectrum(w_t) * L_t, 0.0)
-        kt = dr.select(ok_t, bs_t.pdf, 0.0)
-        rgb = dr.select(glass, F * L_r + kt * L_t, L_direct)
-
-        surf = first_surface(si, ray, active, self._forward)
-        zero3 = mi.Color3f(0.0)
-        kd = dr.select(glass, 0.0, 1.0)
-        return {"rgb": rgb, "kd": kd, "ks": F, "kt": kt, "distance": surf["distance"], "depth": surf["depth"],
-                "normal": surf["normal"], "transparency": surf["glass"], "alpha": surf["alpha"],
-                "interface": dr.select(glass, zero3, mi.Color3f(L_direct)),
-                "reflection": mi.Color3f(L_r), "transmission": mi.Color3f(L_t), "weights": (kd, F, kt),
-                "trans_direct": (zero3, mi.Float(0.0), mi.Vector3f(0.0), mi.Float(0.0))}
-
 
 def from_pinhole(sensor, ray):
     """Perspective sensors start rays on the near plane (near_clip away); move the origins back to the pinhole so
@@ -926,24 +516,6 @@ def from_pinhole(sensor, ray):
         ray = mi.Ray3f(ray)
         ray.o = mi.Point3f(sensor.world_transform().translation())
     return ray
-
-
-def is_glass(si):
-    """Hits on glass: ``dielectric`` (delta transmission) or ``thindielectric`` (delta reflection + Null lobe)."""
-    flags = si.bsdf().flags()
-    thin = mi.has_flag(flags, mi.BSDFFlags.Null) & mi.has_flag(flags, mi.BSDFFlags.DeltaReflection)
-    return si.is_valid() & (mi.has_flag(flags, mi.BSDFFlags.DeltaTransmission) | thin)
-
-
-def first_surface(si, ray, active, forward) -> dict:
-    """Ground-truth buffers of the first surface along rays (glass included), in the project's conventions:
-    ``depth`` planar camera z, ``normal`` world shading normal facing the ray, ``glass`` mask, ``alpha`` hit mask."""
-    valid = active & si.is_valid()
-    dist = dr.select(valid, si.t, 0.0)
-    n = si.sh_frame.n
-    n = dr.select(valid, dr.select(dr.dot(n, ray.d) > 0, -n, n), mi.Vector3f(0.0))
-    return {"distance": dist, "depth": dist * dr.dot(ray.d, forward), "normal": n,
-            "glass": dr.select(valid & is_glass(si), 1.0, 0.0), "alpha": dr.select(valid, 1.0, 0.0)}
 
 
 def register() -> None:
