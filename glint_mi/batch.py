@@ -139,42 +139,63 @@ class RayBank:
         return {"aligned_views": done, "views": V, "points_per_view_median": float(np.median(counts)),
                 "inlier_share_median": float(np.median(inlier_share)) if inlier_share else float("nan")}
 
-    def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04) -> dict:
-        """A 3D cue for L_trans that does not come from the model (glint_mi's; the paper has only the albedo prior):
-        an SfM feature tracked in a view lies on the surface that view sees, or behind it if that surface is glass.
-        With the depth prior aligned to the metric SfM points (:meth:`align_depth_priors`; the prior sees the glass
-        surface), an observation more than ``margin`` x its depth behind the prior is seen through (+1), one within
-        it is on an opaque surface (-1). Every pixel takes the label of its nearest observation within ``radius`` x
-        the image width (0 farther away, or where observations on one pixel disagree). Sets ``self.cue`` [pixels]
-        int8; views without an SfM fit or without tracks stay 0; without any labelled view ``self.cue`` is None (the
-        paper's depth-gap rule applies). Returns counts for the run report."""
-        from scipy.ndimage import distance_transform_edt
-
-        self.cue = None  # until a view has evidence: L_trans keeps the paper's depth-gap rule
-        prior = self.priors.get("depth")
-        if prior is None or self.depth_affine is None or not observations:
-            why = ("no depth prior" if prior is None else "the depth prior is not aligned to SfM (depth_align: sfm)"
-                   if self.depth_affine is None else "no SfM tracks (a COLMAP model with images and points3D)")
-            return {"views": 0, "why": why}
-        cue = np.zeros(self.offsets[-1], np.int8)
-        n_t = n_o = used = 0
+    def observation_pixels(self, observations: dict | None) -> dict[int, tuple]:
+        """Per view index with tracked SfM features: (rows [n], cols [n], planar depth of their 3D points [n])."""
+        out = {}
         for i, v in enumerate(self.views):
-            ob = observations.get(v.name)
-            if ob is None or not np.isfinite(self.depth_affine[i, 0]) or len(ob[0]) == 0:
+            ob = (observations or {}).get(v.name)
+            if ob is None or len(ob[0]) == 0:
                 continue
             xy, xyz = ob
             h, w = self.sizes[i]
             z = ((xyz - self.origins[i]) @ self.axes[i].astype(np.float64))[:, 2]
             col, row = np.floor(xy[:, 0]).astype(np.int64), np.floor(xy[:, 1]).astype(np.int64)
             ok = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (z > 0)
-            col, row, z = col[ok], row[ok], z[ok]
-            pr = prior[self.offsets[i] + row * w + col, 0].astype(np.float64)
-            a, q = self.depth_affine[i]
-            seen = pr > 0
-            z_prior = (pr[seen] - q) / a  # the prior's metric depth (its inverse for a disparity prior)
-            if self.depth_inverse:
-                z_prior = np.where(z_prior > 0, 1.0 / np.maximum(z_prior, 1e-12), np.inf)
-            lab = np.where(z[seen] > z_prior * (1.0 + margin), 1, -1)
+            if ok.any():
+                out[i] = (row[ok], col[ok], z[ok])
+        return out
+
+    def prior_surface_depth(self, i: int, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+        """Metric planar depth of the surface the depth prior sees at pixels of view ``i`` (its SfM-aligned
+        affine map inverted; NaN where the prior is invalid or view ``i`` has no fit)."""
+        if self.priors.get("depth") is None or self.depth_affine is None or not np.isfinite(self.depth_affine[i, 0]):
+            return np.full(len(row), np.nan)
+        pr = self.priors["depth"][self.offsets[i] + row * self.sizes[i][1] + col, 0].astype(np.float64)
+        a, q = self.depth_affine[i]
+        z = (pr - q) / a  # the prior's metric depth (its inverse for a disparity prior)
+        if self.depth_inverse:
+            z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), np.inf)
+        return np.where(pr > 0, z, np.nan)
+
+    def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04,
+                        surface=None, source: str = "depth prior") -> dict:
+        """A 3D cue for L_trans that the transmission set cannot bend (glint_mi's; the paper has only the albedo
+        prior): an SfM feature tracked in a view lies on the surface that view sees, or behind it if that surface
+        is glass. ``surface(i, rows, cols)`` gives the metric depth of the surface view ``i`` sees at those pixels
+        (NaN: unknown): by default the depth prior aligned to the SfM points (:meth:`prior_surface_depth`; the
+        prior sees the glass surface); without a prior, the trainer passes the interface's own rendered depth. An
+        observation more than ``margin`` x its depth behind that surface is seen through (+1), any other lies on an
+        opaque surface (-1). Every pixel takes the label of its nearest
+        observation within ``radius`` x the image width (0 farther away, or where observations on one pixel
+        disagree). Sets ``self.cue`` [pixels] int8; without any labelled view ``self.cue`` is None (the paper's
+        depth-gap rule applies). Returns counts for the run report."""
+        from scipy.ndimage import distance_transform_edt
+
+        self.cue = None  # until a view has evidence: L_trans keeps the paper's depth-gap rule
+        if not observations:
+            return {"views": 0, "why": "no SfM tracks (a COLMAP model with images and points3D)"}
+        if surface is None:
+            if self.priors.get("depth") is None or self.depth_affine is None:
+                return {"views": 0, "why": "no depth prior" if self.priors.get("depth") is None else
+                        "the depth prior is not aligned to SfM (depth_align: sfm)"}
+            surface = self.prior_surface_depth
+        cue = np.zeros(self.offsets[-1], np.int8)
+        n_t = n_o = used = 0
+        for i, (row, col, z) in self.observation_pixels(observations).items():
+            h, w = self.sizes[i]
+            zs = surface(i, row, col)
+            seen = np.isfinite(zs)
+            lab = np.where(z > zs * (1.0 + margin), 1, -1)[seen]
             acc = np.zeros((h, w))
             np.add.at(acc, (row[seen], col[seen]), lab)
             if not acc.any():
@@ -183,11 +204,11 @@ class RayBank:
             lab_map = np.sign(acc[iy, ix]) * (dist <= radius * w)
             cue[self.offsets[i]:self.offsets[i + 1]] = lab_map.ravel().astype(np.int8)
             n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
-        rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
+        rep = {"views": used, "surface": source, "seen_through_observations": n_t, "opaque_observations": n_o,
                "pixels_seen_through": float(np.mean(cue == 1)), "pixels_opaque": float(np.mean(cue == -1)),
                "margin": margin, "radius": radius}
         if not used:  # an all-zero cue would silence L_trans (no pixel has evidence)
-            return {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
+            return {**rep, "why": f"no view has tracked SfM features on or behind its {source}"}
         self.cue = cue
         return rep
 

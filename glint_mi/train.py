@@ -67,9 +67,19 @@ class Trainer:
             self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
             self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
                      f"{len(self.bank.views)} views (the others keep the per-batch fit)")
+        self.interface_cue = None  # observation pixels, when the cue is measured against the interface's depth
         if cfg.trans_cue != "none" and "transmission" in self.sets:  # only L_trans and plausibility read it
-            cue = self.bank.see_through_cue(self.ds.observations(), cfg.cue_margin, cfg.cue_radius)
-            self.report["trans_cue"] = cue
+            obs = self.ds.observations()
+            cue = self.bank.see_through_cue(obs, cfg.cue_margin, cfg.cue_radius)
+            if self.bank.cue is None and obs and cfg.trans_cue == "auto" and "depth" not in self.bank.has:
+                # no depth prior: the surface a view sees is the interface's own depth, measured when L_trans
+                # starts and before each opacity reset (kept in the checkpoint)
+                self.interface_cue = self.bank.observation_pixels(obs)
+                cue = {"views": 0, "surface": "interface", "why": "measured against the interface's depth from "
+                       f"iteration {cfg.at(cfg.trans_from)} (when L_trans starts) on"}
+                if resume and self._resume_cue is not None:
+                    self.bank.cue = self._resume_cue
+            self.report.setdefault("trans_cue", cue)
             self.log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
                      f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
                      + (f" ({cue['why']})" if "why" in cue else ""))
@@ -251,15 +261,47 @@ class Trainer:
 
     def _structure_now(self, st):
         c, it = self.cfg, self.it + 1
+        reset = c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0
+        if self.interface_cue is not None and (it == c.at(c.trans_from) or (reset and it > c.at(c.trans_from))):
+            self._interface_cue(it)  # before the reset, while the interface is a surface
         if self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from):
             for role in sorted(st["trained"] & set(self.sets)):
                 self.sets[role] = self.strategy.densify_and_prune(it, role, self.sets[role], self.adam,
                                                                   prune_large=self.strategy.resets > 0)
-        if c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0:
+        if reset:
             for role in sorted(st["trained"] & set(self.sets)):
                 fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
                 self.strategy.reset(it, role, self.sets[role], self.adam, fields)
         self._auto_components(st)
+
+    def _interface_cue(self, it: int) -> None:
+        """The SfM see-through cue against the interface's rendered depth (no depth prior): each tracked feature is
+        compared with the interface's expected depth at its pixel, where the interface is a surface (accumulated
+        alpha >= trans_min_alpha)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        pix = self.interface_cue
+        views = sorted(pix)
+        rows = np.concatenate([pix[i][0] for i in views])
+        cols = np.concatenate([pix[i][1] for i in views])
+        vid = np.concatenate([np.full(len(pix[i][0]), i) for i in views])
+        flat = self.bank.offsets[vid] + rows * np.array([self.bank.sizes[i][1] for i in vid]) + cols
+        ray = mi.Ray3f(mi.Point3f(*floats(self.bank.origins[vid])), mi.Vector3f(*floats(self.bank.dirs[flat])))
+        enabled = self.integ.enabled
+        self.integ.enabled = {"interface"}
+        out = self.integ.trace(ray, mi.Bool(True), forward=mi.Vector3f(*floats(self.bank.axes[vid, :, 2])))
+        self.integ.enabled = enabled
+        dr.eval(out["depth"], out["alpha"])
+        depth = np.where(np.array(out["alpha"]) >= self.cfg.trans_min_alpha, np.array(out["depth"]), np.nan)
+        at = {i: depth[vid == i] for i in views}
+        surface = lambda i, r, c_: at[i]  # called with view i's observation pixels, in the order rendered
+        cue = self.bank.see_through_cue(self.ds.observations(), self.cfg.cue_margin, self.cfg.cue_radius,
+                                        surface=surface, source="interface")
+        self.report["trans_cue"] = {**cue, "iteration": it}
+        self.log(f"L_trans see-through cue against the interface's depth (iteration {it}): "
+                 f"{cue.get('seen_through_observations', 0)} features seen through, "
+                 f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views")
 
     def _auto_components(self, st) -> None:
         """components: auto — keep transmission / reflection only where the evidence calls for them."""
@@ -418,6 +460,8 @@ class Trainer:
         for role, gs in self.sets.items():
             for f in RAW_FIELDS:
                 arrays[f"set/{role}/{f}"] = getattr(gs, f)
+        if self.interface_cue is not None and self.bank.cue is not None:  # measured from the model: keep it
+            arrays["cue"] = self.bank.cue
         arrays.update({f"adam/{k}": v for k, v in self.adam.state_dict().items()})
         arrays.update({f"strategy/{k}": v for k, v in self.strategy.state_dict().items()})
         buf = io.BytesIO()
@@ -445,6 +489,7 @@ class Trainer:
         self.dropped = json.loads(str(z["dropped"]))
         self.report = json.loads(str(z["report"]))
         self.history = json.loads(str(z["history"]))
+        self._resume_cue = z.get("cue")
         roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)
         self.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
         self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
@@ -459,7 +504,8 @@ class Trainer:
         rows = self.history
         if rows:
             keys = ["iteration", "stage", *LOSS_NAMES, "rays_per_s", "gaussians", "share_reflection",
-                    "share_transmission", "mask_t", "gap_behind", "gap_front"]
+                    "share_transmission", "mask_t", "gap_behind", "gap_front", "gain_reflection",
+                    "gain_transmission"]
             buf = io.StringIO()
             w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
             w.writeheader()
