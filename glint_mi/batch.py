@@ -52,6 +52,7 @@ class Batch:
     patch: int
     cue: np.ndarray | None = None       # [M] SfM see-through cue: +1 seen through, -1 opaque, 0 no evidence
     depth_inverse: bool = False         # the depth prior is a disparity: affine in 1 / depth
+    sfm_depth: np.ndarray | None = None  # [M] planar depth of a tracked SfM feature at the ray's pixel (0 = none)
 
 
 class RayBank:
@@ -75,6 +76,7 @@ class RayBank:
         self.depth_inverse = self.prior_info.get("depth") == "disparity"
         self.depth_affine = None  # see align_depth_priors
         self.cue = None  # see see_through_cue
+        self.sfm_depth = None  # see set_sfm_depth
         self.glass = None
         if glass_masks:
             gts = [v.load_gt() for v in views]
@@ -167,33 +169,28 @@ class RayBank:
             z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), np.inf)
         return np.where(pr > 0, z, np.nan)
 
-    def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04,
-                        surface=None, source: str = "depth prior") -> dict:
+    def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04) -> dict:
         """A 3D cue for L_trans that the transmission set cannot bend (glint_mi's; the paper has only the albedo
         prior): an SfM feature tracked in a view lies on the surface that view sees, or behind it if that surface
-        is glass. ``surface(i, rows, cols)`` gives the metric depth of the surface view ``i`` sees at those pixels
-        (NaN: unknown): by default the depth prior aligned to the SfM points (:meth:`prior_surface_depth`; the
-        prior sees the glass surface); without a prior, the trainer passes the interface's own rendered depth. An
-        observation more than ``margin`` x its depth behind that surface is seen through (+1), any other lies on an
-        opaque surface (-1). Every pixel takes the label of its nearest
-        observation within ``radius`` x the image width (0 farther away, or where observations on one pixel
-        disagree). Sets ``self.cue`` [pixels] int8; without any labelled view ``self.cue`` is None (the paper's
-        depth-gap rule applies). Returns counts for the run report."""
+        is glass. With the depth prior aligned to the metric SfM points (:meth:`align_depth_priors`,
+        :meth:`prior_surface_depth`; a prior that sees the glass surface), an observation more than ``margin`` x
+        its depth behind the prior is seen through (+1), any other lies on an opaque surface (-1). Every pixel
+        takes the label of its nearest observation within ``radius`` x the image width (0 farther away, or where
+        observations on one pixel disagree). Sets ``self.cue`` [pixels] int8; without any labelled view
+        ``self.cue`` is None (the paper's depth-gap rule applies). Returns counts for the run report."""
         from scipy.ndimage import distance_transform_edt
 
         self.cue = None  # until a view has evidence: L_trans keeps the paper's depth-gap rule
         if not observations:
             return {"views": 0, "why": "no SfM tracks (a COLMAP model with images and points3D)"}
-        if surface is None:
-            if self.priors.get("depth") is None or self.depth_affine is None:
-                return {"views": 0, "why": "no depth prior" if self.priors.get("depth") is None else
-                        "the depth prior is not aligned to SfM (depth_align: sfm)"}
-            surface = self.prior_surface_depth
+        if self.priors.get("depth") is None or self.depth_affine is None:
+            return {"views": 0, "why": "no depth prior" if self.priors.get("depth") is None else
+                    "the depth prior is not aligned to SfM (depth_align: sfm)"}
         cue = np.zeros(self.offsets[-1], np.int8)
         n_t = n_o = used = 0
         for i, (row, col, z) in self.observation_pixels(observations).items():
             h, w = self.sizes[i]
-            zs = surface(i, row, col)
+            zs = self.prior_surface_depth(i, row, col)
             seen = np.isfinite(zs)
             lab = np.where(z > zs * (1.0 + margin), 1, -1)[seen]
             acc = np.zeros((h, w))
@@ -204,13 +201,36 @@ class RayBank:
             lab_map = np.sign(acc[iy, ix]) * (dist <= radius * w)
             cue[self.offsets[i]:self.offsets[i + 1]] = lab_map.ravel().astype(np.int8)
             n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
-        rep = {"views": used, "surface": source, "seen_through_observations": n_t, "opaque_observations": n_o,
+        rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
                "pixels_seen_through": float(np.mean(cue == 1)), "pixels_opaque": float(np.mean(cue == -1)),
                "margin": margin, "radius": radius}
         if not used:  # an all-zero cue would silence L_trans (no pixel has evidence)
-            return {**rep, "why": f"no view has tracked SfM features on or behind its {source}"}
+            return {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
         self.cue = cue
         return rep
+
+    def set_sfm_depth(self, observations: dict | None) -> dict:
+        """``self.sfm_depth`` [pixels] float32: the planar depth of the tracked SfM feature at each training pixel
+        (the median where several fall on one pixel; 0 = none), except where the see-through cue (computed first)
+        says the feature lies behind glass. The interface's depth is pulled to it (``w_sfm_depth``)."""
+        self.sfm_depth = None
+        pix = self.observation_pixels(observations)
+        if not pix:
+            return {"pixels": 0, "why": "no SfM tracks"}
+        depth = np.zeros(self.offsets[-1], np.float32)
+        n = 0
+        for i, (row, col, z) in pix.items():
+            flat = self.offsets[i] + row * self.sizes[i][1] + col
+            if self.cue is not None:
+                keep = self.cue[flat] <= 0
+                flat, z = flat[keep], z[keep]
+            order = np.argsort(flat, kind="stable")
+            flat, z = flat[order], z[order]
+            uniq, start = np.unique(flat, return_index=True)
+            depth[uniq] = [np.median(part) for part in np.split(z, start[1:])]
+            n += len(uniq)
+        self.sfm_depth = depth
+        return {"pixels": n, "share_of_pixels": n / max(int(self.offsets[-1]), 1)}
 
     @property
     def has(self) -> set[str]:
@@ -234,7 +254,8 @@ class RayBank:
                      None if get("depth") is None else get("depth")[:, 0], get("normal"), get("albedo"),
                      None if self.glass is None else self.glass[flat],
                      None if self.depth_affine is None else self.depth_affine[view], patches, p,
-                     None if self.cue is None else self.cue[flat], self.depth_inverse)
+                     None if self.cue is None else self.cue[flat], self.depth_inverse,
+                     None if self.sfm_depth is None else self.sfm_depth[flat])
 
 
 def patch_neighbours(patches: int, p: int):

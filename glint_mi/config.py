@@ -15,7 +15,8 @@ from . import conventions as cv
 
 PAPER_ITERS = 60_000.0
 # the weighted terms of the objective (glint_mi.losses.batch_objective), each switched by its w_<name> weight
-LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "normal", "consistency", "trans", "treg", "plausibility")
+LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "sfm_depth", "normal", "consistency", "trans", "treg",
+              "plausibility")
 
 
 class ConfigError(ValueError):
@@ -76,6 +77,9 @@ class TrainConfig:
     w_dssim: float = 0.4
     w_direct: float = 1.0                # photometric loss of the transmission set's direct image (x w_l1, w_dssim)
     w_depth: float = 0.1
+    w_sfm_depth: float = 0.1             # glint_mi's: the interface's depth at pixels with a tracked SfM feature,
+    #                                      |D - z| / z (not where the see-through cue says the feature lies behind
+    #                                      glass); the capture's own metric geometry, with or without priors
     depth_align: str = "sfm"             # sfm: the prior's scale and shift fitted once per view to the metric SfM
     #                                      points (anchors the depth; views without points fall back); batch: the
     #                                      paper's per-image scale-shift fit in every batch (MonoSDF)
@@ -89,16 +93,14 @@ class TrainConfig:
     #                                      on a room without albedo prior: it also pulls G_trans off the glass, the
     #                                      transparent mask shrinks to 0.3 % and components: auto drops G_trans)
     trans_cue: str = "auto"              # L_trans's 3D cue from the SfM tracks (RayBank.see_through_cue): transparent
-    #                                      only near features seen behind the surface a view sees, opaque near
-    #                                      features on it. auto: with a transmission set and COLMAP tracks, the
-    #                                      surface is the SfM-aligned depth prior, or without a depth prior the
-    #                                      interface's own depth (measured when L_trans starts and before each
-    #                                      reset); without tracks the paper's depth gap. prior: the depth prior
-    #                                      only. none: the paper. With an albedo prior the cue replaces only the
-    #                                      depth gap (tuning room 7301: t IoU 0.28 -> 0.54, t off glass 0.11 ->
-    #                                      0.18). Real capture without priors (the fox): the paper's depth gap calls
-    #                                      92 % of the wallpaper "behind" (the young transmission set's expected
-    #                                      depth lies behind the trained interface), a veil; the interface cue not
+    #                                      only near features seen behind the SfM-aligned depth prior, opaque near
+    #                                      features on it. auto: with a transmission set, COLMAP tracks and a depth
+    #                                      prior, else the paper's depth gap when there is an albedo prior; with
+    #                                      neither (no priors) components: auto drops the transmission set (the
+    #                                      depth gap of two sets fitting one surface is no glass cue: on the fox it
+    #                                      called 92 % of the wallpaper glass). none: the paper's masks. With an
+    #                                      albedo prior the cue replaces only the depth gap (tuning room 7301: t IoU
+    #                                      0.28 -> 0.54, t off glass 0.11 -> 0.18)
     t_raise: str = "masks"               # where the objective may raise t: masks = from the end of densification,
     #                                      not where L_trans's opaque mask votes (which votes: t_gate_votes;
     #                                      glint_mi's: off glass a blend of c_I and c_T, two fits of the same
@@ -139,6 +141,8 @@ class TrainConfig:
     # components: auto
     auto_trans_min: float = 0.005        # keep the transmission set if L_trans's transparent mask covers this
     auto_contrib_min: float = 0.005      # prune a set whose share of the image energy stays below this
+    auto_reflect_gain: float = 0.05      # without glass (no transmission set kept), keep the reflection set only if
+    #                                      it lowers the batch L1 error by this fraction (losses.component_gains)
     # run
     checkpoint_every: int = 200
     eval_every: int = 0                  # > 0: evaluate the test views every this many iterations and at the end
@@ -213,7 +217,7 @@ class TrainConfig:
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
         need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
-        need(self.trans_cue in ("auto", "prior", "none"), "trans_cue", "use auto, prior or none")
+        need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
         need(self.t_gate_votes in ("all", "geometric"), "t_gate_votes", "use all (L_trans's opaque mask) or geometric")
         need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "

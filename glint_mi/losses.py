@@ -228,6 +228,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             dist = depth / dr.dot(ray.d, fwd)
             parts["consistency"] = c.w_consistency * depth_normal_consistency(
                 ray.o, ray.d, dist, normal, A > 0.5, nb)
+        out_depth = depth  # the interface's planar depth (the depth term below may work in 1 / depth)
         if st["depth"]:
             prior = floats(b.depth_prior)
             mask = (prior > 0) & (A > 0.5)
@@ -246,6 +247,11 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             else:
                 vid = mi.UInt32(aligned(b.view, np.uint32))
                 parts["depth"] = c.w_depth * depth_loss(depth, prior, mask, vid, n_views)
+        if st["sfm_depth"] and b.sfm_depth is not None:
+            z = floats(b.sfm_depth)
+            m = (z > 0) & (A > 0.5)
+            r = dr.select(m, dr.abs(out_depth - z) / dr.maximum(z, 1e-6), 0.0)
+            parts["sfm_depth"] = c.w_sfm_depth * dr.sum(r) / dr.maximum(dr.count(m), 1)
         if st["normal"]:
             axes = [mi.Vector3f(*floats(b.axes[:, :, k])) for k in range(3)]
             n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))

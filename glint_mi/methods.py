@@ -10,6 +10,7 @@ import dataclasses
 
 NO_PRIORS = dict(priors="none", w_depth=0.0, w_normal=0.0)
 NO_GLASS = dict(w_trans=0.0, w_treg=0.0, w_plausibility=0.0, w_direct=0.0)
+NOT_OURS = dict(w_sfm_depth=0.0)  # glint_mi's SfM depth term is no baseline's
 PLAIN_PHOTO = dict(w_l1=0.8, w_dssim=0.2)  # 3DGS / 2DGS weights
 ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no specular, no transparency attribute
 
@@ -23,27 +24,27 @@ class Method:
 
 
 METHODS = {m.name: m for m in [
-    Method("3dgs", dict(components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS, **NO_GLASS,
+    Method("3dgs", dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS, **NO_GLASS,
                         **PLAIN_PHOTO),
            "one set of 3D Gaussians, plain alpha compositing (3DGRT-style ray tracing)",
            "ray-traced at the 3DGRT peak instead of rasterised; 3DGS's screen-space densification threshold replaced "
            "by our top-fraction rule"),
-    Method("2dgs", dict(components="interface", **ALPHA, w_consistency=0.1, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
+    Method("2dgs", dict(**NOT_OURS, components="interface", **ALPHA, w_consistency=0.1, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
            "one set of surfels + depth-normal consistency",
            "no depth distortion loss; ray-traced surfels"),
-    Method("pgsr", dict(components="interface", **ALPHA, w_consistency=0.3, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
+    Method("pgsr", dict(**NOT_OURS, components="interface", **ALPHA, w_consistency=0.3, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
            "planar surfels + single-view depth-normal consistency",
            "PGSR's multi-view geometric and photometric consistency terms are NOT implemented (they need pairs of "
            "rendered views per step); only the single-view part, with a higher weight"),
-    Method("envgs", dict(components="interface,reflection", blend="envgs", **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
+    Method("envgs", dict(**NOT_OURS, components="interface,reflection", blend="envgs", **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
            "interface + reflection set, C = (1 - beta) c_base + beta c_env, no Fresnel, no transmission",
            "the environment set is traced from the interface's expected depth like GLINT's (same as EnvGS); "
            "no normal prior"),
-    Method("refgs", dict(components="interface", **ALPHA, sh_degree=3, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
+    Method("refgs", dict(**NOT_OURS, components="interface", **ALPHA, sh_degree=3, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
            "surfels with view-dependent appearance",
            "Ref-GS's directional (split-sum) appearance factorisation is replaced by degree-3 SH colour: only the "
            "view dependence is kept"),
-    Method("tsgs", dict(components="interface,transmission", trans_masks="gt", w_plausibility=0.0, t_raise="free",
+    Method("tsgs", dict(**NOT_OURS, components="interface,transmission", trans_masks="gt", w_plausibility=0.0, t_raise="free",
                         **NO_PRIORS),
            "surfels with a transparency attribute supervised by transparent masks",
            "masks are the GROUND-TRUTH glass masks (labelled so; TSGS uses image segmentation); the first-surface "

@@ -67,22 +67,19 @@ class Trainer:
             self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
             self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
                      f"{len(self.bank.views)} views (the others keep the per-batch fit)")
-        self.interface_cue = None  # observation pixels, when the cue is measured against the interface's depth
         if cfg.trans_cue != "none" and "transmission" in self.sets:  # only L_trans and plausibility read it
-            obs = self.ds.observations()
-            cue = self.bank.see_through_cue(obs, cfg.cue_margin, cfg.cue_radius)
-            if self.bank.cue is None and obs and cfg.trans_cue == "auto" and "depth" not in self.bank.has:
-                # no depth prior: the surface a view sees is the interface's own depth, measured when L_trans
-                # starts and before each opacity reset (kept in the checkpoint)
-                self.interface_cue = self.bank.observation_pixels(obs)
-                cue = {"views": 0, "surface": "interface", "why": "measured against the interface's depth from "
-                       f"iteration {cfg.at(cfg.trans_from)} (when L_trans starts) on"}
-                if resume and self._resume_cue is not None:
-                    self.bank.cue = self._resume_cue
-            self.report.setdefault("trans_cue", cue)
+            cue = self.bank.see_through_cue(self.ds.observations(), cfg.cue_margin, cfg.cue_radius)
+            self.report["trans_cue"] = cue
             self.log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
                      f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
                      + (f" ({cue['why']})" if "why" in cue else ""))
+        if cfg.w_sfm_depth > 0:
+            sd = self.bank.set_sfm_depth(self.ds.observations())
+            self.report["sfm_depth"] = sd
+            self.log(f"SfM depth: {sd['pixels']} training pixels carry a tracked feature's depth"
+                     + (f" ({sd['why']})" if "why" in sd else ""))
+        if not resume:
+            self._glass_cue_check()
         from .dataset.priors import priors_are_derived
 
         self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
@@ -180,6 +177,7 @@ class Trainer:
         return {"traced": traced, "trained": trained, "name": "warm-up" if traced == {"interface"} and not on(c.warmup)
                 else ("refine" if "interface" not in trained else "joint"),
                 "depth": c.w_depth > 0 and "depth" in self.bank.has,
+                "sfm_depth": c.w_sfm_depth > 0 and self.bank.sfm_depth is not None,
                 "normal": c.w_normal > 0 and "normal" in self.bank.has and on(c.normal_from),
                 "consistency": c.w_consistency > 0,
                 "direct": has_t and c.w_direct > 0,
@@ -262,8 +260,6 @@ class Trainer:
     def _structure_now(self, st):
         c, it = self.cfg, self.it + 1
         reset = c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0
-        if self.interface_cue is not None and (it == c.at(c.trans_from) or (reset and it > c.at(c.trans_from))):
-            self._interface_cue(it)  # before the reset, while the interface is a surface
         if self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from):
             for role in sorted(st["trained"] & set(self.sets)):
                 self.sets[role] = self.strategy.densify_and_prune(it, role, self.sets[role], self.adam,
@@ -274,34 +270,23 @@ class Trainer:
                 self.strategy.reset(it, role, self.sets[role], self.adam, fields)
         self._auto_components(st)
 
-    def _interface_cue(self, it: int) -> None:
-        """The SfM see-through cue against the interface's rendered depth (no depth prior): each tracked feature is
-        compared with the interface's expected depth at its pixel, where the interface is a surface (accumulated
-        alpha >= trans_min_alpha)."""
-        import drjit as dr
-        import mitsuba as mi
-
-        pix = self.interface_cue
-        views = sorted(pix)
-        rows = np.concatenate([pix[i][0] for i in views])
-        cols = np.concatenate([pix[i][1] for i in views])
-        vid = np.concatenate([np.full(len(pix[i][0]), i) for i in views])
-        flat = self.bank.offsets[vid] + rows * np.array([self.bank.sizes[i][1] for i in vid]) + cols
-        ray = mi.Ray3f(mi.Point3f(*floats(self.bank.origins[vid])), mi.Vector3f(*floats(self.bank.dirs[flat])))
-        enabled = self.integ.enabled
-        self.integ.enabled = {"interface"}
-        out = self.integ.trace(ray, mi.Bool(True), forward=mi.Vector3f(*floats(self.bank.axes[vid, :, 2])))
-        self.integ.enabled = enabled
-        dr.eval(out["depth"], out["alpha"])
-        depth = np.where(np.array(out["alpha"]) >= self.cfg.trans_min_alpha, np.array(out["depth"]), np.nan)
-        at = {i: depth[vid == i] for i in views}
-        surface = lambda i, r, c_: at[i]  # called with view i's observation pixels, in the order rendered
-        cue = self.bank.see_through_cue(self.ds.observations(), self.cfg.cue_margin, self.cfg.cue_radius,
-                                        surface=surface, source="interface")
-        self.report["trans_cue"] = {**cue, "iteration": it}
-        self.log(f"L_trans see-through cue against the interface's depth (iteration {it}): "
-                 f"{cue.get('seen_through_observations', 0)} features seen through, "
-                 f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views")
+    def _glass_cue_check(self) -> None:
+        """components: auto — the transmission set needs a glass cue to learn from: an albedo prior (the paper's
+        masks) or the SfM see-through cue against an aligned depth prior. Without either (no priors: a phone
+        capture) L_trans has only the paper's depth gap between two sets that fit the same surfaces, which turns
+        an opaque room into glass (the fox: 92 % of the wallpaper 'behind' when L_trans starts): the set is
+        dropped before training, and the run says so."""
+        c = self.cfg
+        if c.components != "auto" or "transmission" not in self.sets or c.trans_cue == "none" \
+                or c.trans_masks == "gt":
+            return
+        if "albedo" in self.bank.has or self.bank.cue is not None:
+            return
+        why = ("no glass cue: no albedo prior and no depth prior aligned to SfM tracks, so L_trans could only "
+               "compare two sets that fit the same surfaces (trans_cue: none keeps the paper's depth-gap rule)")
+        self.report["components"]["transmission"] = {"kept": False, "iteration": 0, "why": why}
+        self.dropped["transmission"] = why
+        self.log(f"components auto: drop transmission: {why}")
 
     def _auto_components(self, st) -> None:
         """components: auto — keep transmission / reflection only where the evidence calls for them."""
@@ -325,9 +310,16 @@ class Trainer:
                 why = (f"L_trans transparent mask covers {100 * cover:.2f} % of sampled pixels "
                        f"(threshold {100 * c.auto_trans_min:.2f} %), share of image energy {100 * share:.2f} %")
             else:
-                keep = share >= c.auto_contrib_min
-                why = (f"share of image energy k_s c_R = {100 * share:.2f} % "
-                       f"(threshold {100 * c.auto_contrib_min:.2f} %)")
+                # GLINT's reflection set is what the glass interface mirrors; without glass, the 4 % Fresnel floor
+                # of every surface is a blur the interface's colour absorbs: then the set must earn its place by
+                # the photometric fit (fox, no glass: 2 % less L1 error; room b, with glass: 2 % too)
+                glass = "transmission" in self.sets and "transmission" not in self.dropped
+                gain = float(np.mean([h.get("gain_reflection", 0.0) for h in recent])) if recent else 0.0
+                keep = share >= c.auto_contrib_min and (glass or gain >= c.auto_reflect_gain)
+                why = (f"share of image energy k_s c_R = {100 * share:.2f} % (threshold "
+                       f"{100 * c.auto_contrib_min:.2f} %); " + ("a transmission set is kept (glass)" if glass else
+                       f"no glass: it lowers the L1 error by {100 * gain:.1f} % (threshold "
+                       f"{100 * c.auto_reflect_gain:.0f} %)"))
             self.report["components"][role] = {"kept": bool(keep), "iteration": self.it + 1, "why": why}
             self.log(f"components auto: {'keep' if keep else 'drop'} {role}: {why}")
             if not keep:
@@ -460,8 +452,6 @@ class Trainer:
         for role, gs in self.sets.items():
             for f in RAW_FIELDS:
                 arrays[f"set/{role}/{f}"] = getattr(gs, f)
-        if self.interface_cue is not None and self.bank.cue is not None:  # measured from the model: keep it
-            arrays["cue"] = self.bank.cue
         arrays.update({f"adam/{k}": v for k, v in self.adam.state_dict().items()})
         arrays.update({f"strategy/{k}": v for k, v in self.strategy.state_dict().items()})
         buf = io.BytesIO()
@@ -489,7 +479,6 @@ class Trainer:
         self.dropped = json.loads(str(z["dropped"]))
         self.report = json.loads(str(z["report"]))
         self.history = json.loads(str(z["history"]))
-        self._resume_cue = z.get("cue")
         roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)
         self.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
         self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")

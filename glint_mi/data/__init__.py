@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import DatasetError
 from .frames import Frame
-from .images import block_mean, check_decodable, decode, fit_to, image_size
+from .images import block_mean, check_decodable, decode, fit_to, image_size  # noqa: F401 (block_mean re-exported)
 
 MISSING = ("error", "skip")
 

@@ -176,7 +176,6 @@ def render_views_cycles(scene, folder: Path, cams: list[Camera], spp: int, progr
     an interrupted run resumes at the first view without files. Normals are turned to face each pixel's ray (the
     protocol's convention; Cycles writes the surface's own normal). ``scene`` (Mitsuba) gives the camera rays only.
     """
-    import mitsuba as mi
 
     from glint_mi.render import camera_rays
 
@@ -309,7 +308,7 @@ def split_views(names: list[str], every: int = 8) -> dict:
 
 def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=None, sfm: str = "known",
                priors: bool = True, glass: bool = True, renderer: str = "mitsuba", albedo_prior: bool = True,
-               see_through: float = 1.0) -> dict:
+               see_through: float | None = None, prior_model: str = "realistic") -> dict:
     """Generate, render and export one scene into ``folder`` (written to a temporary folder, then moved).
 
     ``glass=False``: the same room without the case's glass panels (frame and objects stay).
@@ -371,14 +370,15 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
             "sfm_images": "Mitsuba path (max_depth 6) renders for SIFT" if sfm != "none" else None,
             "emitter_scale": exposure, **stats, "total_seconds": time.perf_counter() - t0}
     if priors:
-        from .priors import derive_priors
+        from .priors import MODELS, derive_priors
 
-        from .priors import Corruption
-
-        derive_priors(tmp, seed, Corruption(see_through_glass=see_through), scene=scene, albedo=albedo_prior)
-        meta["priors"] = (f"derived from ground truth (see priors/PRIORS.json): depth, normal"
+        model = MODELS[prior_model]()
+        if see_through is not None:
+            model.see_through_glass = see_through
+        derive_priors(tmp, seed, model, scene=scene, albedo=albedo_prior)
+        meta["priors"] = (f"derived from ground truth ({prior_model} model, see priors/PRIORS.json): depth, normal"
                           f"{', albedo' if albedo_prior else ' (no albedo prior)'}; see through glass with "
-                          f"probability {see_through:g}")
+                          f"probability {model.see_through_glass:g} per view")
     (tmp / "meta.json").write_text(json.dumps(meta, indent=1))
     state_file.unlink()
     for leftover in [*tmp.glob("images/*.tmp.*"), *tmp.glob("gt/*.tmp.*")]:  # from a run killed mid-write
