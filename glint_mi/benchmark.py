@@ -38,6 +38,53 @@ def scenes_in(data: Path) -> list[Path]:
     return found
 
 
+PRIORS_ROW = "priors"  # not a method: the dataset's prior maps scored as they are
+
+
+def score_priors(scene_dir: Path, out: Path | None = None) -> dict:
+    """The ``priors`` row: each test view's depth and normal priors read straight from the maps, the depth aligned
+    as GLINT's loss aligns it (scale and shift fitted to the metric SfM points the view sees; a per-image fit to
+    the ground truth where a view has too few points, labelled), normals rotated to world axes; scored with the
+    same metrics as a method's renders (no image, no transparency)."""
+    from .batch import RayBank
+    from .data import load_dataset
+    from .runs import atomic_write_text
+
+    ds = load_dataset(scene_dir)
+    views = ds.test_views
+    bank = RayBank(views, ds.root)
+    if not {"depth", "normal"} <= bank.has:
+        raise FileNotFoundError(f"{scene_dir}: the priors row needs depth and normal priors")
+    rep = bank.align_depth_priors(ds.points)
+    per_view = {}
+    gt_fit = 0
+    for i, v in enumerate(views):
+        gt = v.load_gt()
+        h, w = bank.sizes[i]
+        sl = slice(bank.offsets[i], bank.offsets[i + 1])
+        P = bank.priors["depth"][sl, 0].reshape(h, w).astype(np.float64)
+        wq = bank.depth_affine[i]
+        if not np.isfinite(wq[0]):  # too few SfM points in this view: the best affine fit (favours the prior)
+            m = (P > 0) & (gt["depth"] > 0)
+            x = 1.0 / gt["depth"][m] if bank.depth_inverse else gt["depth"][m]
+            (a, b), *_ = np.linalg.lstsq(np.column_stack([x, np.ones(m.sum())]), P[m], rcond=None)
+            wq, gt_fit = (a, b), gt_fit + 1
+        z = (P - wq[1]) / wq[0]
+        if bank.depth_inverse:
+            z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), 0.0)
+        n_cv = bank.priors["normal"][sl].reshape(h, w, 3).astype(np.float64)
+        n_world = n_cv @ bank.axes[i].astype(np.float64).T
+        pred = {"depth": np.where(P > 0, z, 0.0), "normal": n_world, "transparency": np.zeros((h, w))}
+        m = M.view_metrics({**pred, "rgb": np.zeros((h, w, 3))}, gt, np.zeros((h, w, 3)))
+        per_view[v.name] = {k: m[k] for k in ("normal_mae", "normal_mae_glass", "absrel", "absrel_glass")}
+    metrics = {**M.mean_metrics(list(per_view.values())), "fps": float("nan"), "train_s": 0.0}
+    res = {"metrics": metrics, "per_view": per_view, "aligned": rep, "views_fitted_to_ground_truth": gt_fit}
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(out / "metrics.json", json.dumps(res, indent=1))
+    return res
+
+
 def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, log=print, **extra) -> dict:
     """Train (or resume, or skip when finished) one method on one scene and evaluate it; returns the metrics."""
     from .evaluate import evaluate
@@ -46,6 +93,8 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
 
     if (run / "metrics.json").exists():
         return json.loads((run / "metrics.json").read_text())
+    if method == PRIORS_ROW:
+        return score_priors(scene_dir, run)
     cfg = config_for(method, preset, variant, **extra)
     if (run / "checkpoint.npz").exists():
         trainer = Trainer(run, cfg, resume=True, log=log)
@@ -150,7 +199,7 @@ def main(argv=None) -> int:
         ap.error("--seeds must be >= 1")
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    bad = [m for m in methods if m not in METHODS]
+    bad = [m for m in methods if m not in METHODS and m != PRIORS_ROW]
     if bad:
         print(f"error: unknown method(s) {bad}; choose from {sorted(METHODS)}", file=sys.stderr)
         return 2
@@ -170,7 +219,8 @@ def main(argv=None) -> int:
     try:
         extra.update(parse_sets(args.set))
         for m in methods:
-            config_for(m, args.preset, args.variant, **extra)  # every override is valid before anything runs
+            if m != PRIORS_ROW:
+                config_for(m, args.preset, args.variant, **extra)  # every override is valid before anything runs
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -182,6 +232,8 @@ def main(argv=None) -> int:
         runs = {}
         for seed in range(args.seeds):
             for m in methods:
+                if m == PRIORS_ROW and seed > 0:  # the maps do not depend on a seed
+                    continue
                 run = args.out / "runs" / scene.name / (m if seed == 0 else f"{m}@seed{seed}")
                 print(f"[{scene.name}] {m} seed {seed} ...", flush=True)
                 res = run_one(m, scene, run, args.preset, args.variant, log=lambda *a: None, seed=seed, **extra)

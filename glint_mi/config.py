@@ -81,8 +81,11 @@ class TrainConfig:
     #                                      |D - z| / z (not where the see-through cue says the feature lies behind
     #                                      glass); the capture's own metric geometry, with or without priors
     depth_align: str = "sfm"             # sfm: the prior's scale and shift fitted once per view to the metric SfM
-    #                                      points (anchors the depth; views without points fall back); batch: the
-    #                                      paper's per-image scale-shift fit in every batch (MonoSDF)
+    #                                      points (anchors the depth; views without points fall back); image: the
+    #                                      paper's per-image fit (MonoSDF) over each whole view, refitted every
+    #                                      depth_refit of the run on a grid of <= 2048 of its pixels; batch: per
+    #                                      view over the view's rays in each batch (~2.5 patches)
+    depth_refit: float = 0.02
     w_normal: float = 0.3
     w_consistency: float = 0.1
     w_trans: float = 0.01
@@ -114,6 +117,9 @@ class TrainConfig:
     cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
+    normal_loss: str = "l1_cos"          # cos: the supplement's 1 - <n, p>; l1_cos: + |n - p|_1 (glint_mi's)
+    normal_early: str = "off"            # before normal_from: off (glint_mi) or unmasked (the paper: the mask
+    #                                      starts at 10k/60k, the loss at 0)
     tau_delta: float = 0.005             # L_trans depth gap, x scene extent
     trans_min_alpha: float = 0.5         # L_trans: a depth is valid where its set's accumulated alpha reaches this
     # schedule, fractions of the run (paper iteration / 60k)
@@ -137,7 +143,8 @@ class TrainConfig:
     prune_opacity: float = 0.005         # 3DGS's; the paper lists 0.08 / 0.05, which after a reset to 0.01 prunes
                                          # most of a set unless thousands of steps separate reset and pruning
     prune_scale: float = 0.1             # prune Gaussians larger than this x extent (after the first reset)
-    max_gaussians: int = 20_000          # per set
+    max_gaussians: int = 30_000          # every set together: one budget per method (GLINT's three sets share
+    #                                      what a one-set baseline gets)
     # components: auto
     auto_trans_min: float = 0.005        # keep the transmission set if L_trans's transparent mask covers this
     auto_contrib_min: float = 0.005      # prune a set whose share of the image energy stays below this
@@ -215,7 +222,9 @@ class TrainConfig:
         need(self.traversal in ("auto", "kbuffer", "bvh"), "traversal", "use auto, kbuffer or bvh")
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
         need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
-        need(self.depth_align in ("batch", "sfm"), "depth_align", "use batch or sfm")
+        need(self.depth_align in ("batch", "sfm", "image"), "depth_align", "use sfm, image or batch")
+        need(self.normal_loss in ("cos", "l1_cos"), "normal_loss", "use cos (the paper) or l1_cos")
+        need(self.normal_early in ("off", "unmasked"), "normal_early", "use off or unmasked (the paper)")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
@@ -263,13 +272,13 @@ PRESETS = {
     # Adam moves a logit by about lr per step, so opacity resets and densification intervals are set in iterations
     # that let opacities recover (the paper's 3k / 100 iterations are 5 % / 0.17 % of 60k, far fewer steps here).
     "tiny": dict(iterations=300, patches=16, patch=8, sh_degree=0, grid_n=8, grid_k=2, init_min_points=1500,
-                 max_gaussians=6000, checkpoint_every=100, densify_every=0.1, reset_every=0.3, lr_multiplier=3.0),
+                 max_gaussians=10000, checkpoint_every=100, densify_every=0.1, reset_every=0.3, lr_multiplier=3.0),
     # quick: 15 epochs = the 800 iterations x 2048 rays that the bundled 96 x 54 room (21 training views) had
     "quick": dict(iterations=800, epochs=15.0, patches=32, patch=8, sh_degree=1, grid_n=12, grid_k=2, init_min_points=3000,
-                  max_gaussians=15000, densify_every=0.05, reset_every=0.15, lr_multiplier=2.0),
+                  max_gaussians=30000, densify_every=0.05, reset_every=0.15, lr_multiplier=2.0),
     # bench: 10 epochs = 14 min of GLINT on the 48-view 192 x 108 tuning room 7301 on 2 cores (opacity shells)
     "bench": dict(iterations=4000, epochs=10.0, patches=48, patch=8, sh_degree=1, grid_n=16, grid_k=2, init_min_points=6000,
-                  max_gaussians=40000, checkpoint_every=500, densify_every=0.025, reset_every=0.1,
+                  max_gaussians=60000, checkpoint_every=500, densify_every=0.025, reset_every=0.1,
                   lr_multiplier=1.5),
 }
 VARIANTS = {

@@ -46,15 +46,18 @@ def depth_loss_aligned(depth, prior, mask, w, q):
     return dr.sum(r) / dr.maximum(dr.count(mask), 1)
 
 
-def normal_loss(normal, prior, tau_n: float = 0.3, valid=True):
-    """Normal prior with the cosine mask [<n, n_prior> >= tau_n]: mean of |n - p|_1 + (1 - <n, p>) over the mask.
+def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_cos", masked: bool = True):
+    """Normal prior: mean over the valid pixels of (1 - <n, p>) (``form`` "cos", the supplement's) or
+    |n - p|_1 + (1 - <n, p>) ("l1_cos", glint_mi's), with the cosine mask [<n, p> >= tau_n] when ``masked``.
 
     ``normal`` and ``prior`` are unit vectors in the same (camera) frame; the mask is detached.
     """
     cos = dr.dot(normal, prior)
-    mask = mi.Bool(valid) & (dr.detach(cos) >= tau_n)
-    d = normal - prior
-    term = dr.abs(d.x) + dr.abs(d.y) + dr.abs(d.z) + (1.0 - cos)
+    mask = mi.Bool(valid) & (dr.detach(cos) >= tau_n) if masked else mi.Bool(valid)
+    term = 1.0 - cos
+    if form == "l1_cos":
+        d = normal - prior
+        term += dr.abs(d.x) + dr.abs(d.y) + dr.abs(d.z)
     return dr.sum(dr.select(mask, term, 0.0)) / dr.maximum(dr.count(mask), 1), mask
 
 
@@ -235,8 +238,8 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             if b.depth_inverse:  # a disparity prior (MiDaS, Depth Anything): the fit is affine in 1 / depth
                 mask &= depth > 1e-6
                 depth = 1.0 / dr.maximum(depth, 1e-6)
-            if c.depth_align == "sfm" and b.depth_affine is not None:
-                fit = np.isfinite(b.depth_affine[:, 0])  # views without an SfM fit keep the per-batch fit
+            if c.depth_align in ("sfm", "image") and b.depth_affine is not None:
+                fit = np.isfinite(b.depth_affine[:, 0])  # views without a fit keep the per-batch fit
                 w_fix, q_fix = floats(np.where(fit, b.depth_affine[:, 0], 1.0)), floats(
                     np.where(fit, b.depth_affine[:, 1], 0.0))
                 vid = mi.UInt32(aligned(np.where(fit, n_views, b.view), np.uint32))  # fitted views: a spare slot
@@ -257,7 +260,8 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
             prior = mi.Vector3f(*floats(b.normal_prior))
             valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
-            parts["normal"] = c.w_normal * normal_loss(n_cv, prior, c.tau_n, valid)[0]
+            parts["normal"] = c.w_normal * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
+                                                       st["normal_masked"])[0]
         if "transmission" in st["traced"]:
             Dc, Dd, Dn, DA = out["trans_direct"]
             Dc, Dd, Dn, DA = _leaf(mi.Color3f(Dc)), _leaf(Dd), _leaf(Dn), _leaf(DA)

@@ -10,9 +10,17 @@ import dataclasses
 
 NO_PRIORS = dict(priors="none", w_depth=0.0, w_normal=0.0)
 NO_GLASS = dict(w_trans=0.0, w_treg=0.0, w_plausibility=0.0, w_direct=0.0)
-NOT_OURS = dict(w_sfm_depth=0.0)  # glint_mi's SfM depth term is no baseline's
 PLAIN_PHOTO = dict(w_l1=0.8, w_dssim=0.2)  # 3DGS / 2DGS weights
 ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no specular, no transparency attribute
+NOT_OURS = dict(w_sfm_depth=0.0)  # glint_mi's SfM depth term is no baseline's
+NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
+WITH_PRIORS = dict(w_depth=0.1, w_normal=0.3, priors="all")  # GLINT's depth and normal terms, for prior parity
+PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
+             w_sfm_depth=0.0, components="all")
+METHOD_3DGS = dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS,
+                   **NO_GLASS, **PLAIN_PHOTO)
+METHOD_2DGS = dict(**NOT_OURS, components="interface", **ALPHA, w_consistency=0.1, **NO_PRIORS, **NO_GLASS,
+                   **PLAIN_PHOTO)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -24,33 +32,42 @@ class Method:
 
 
 METHODS = {m.name: m for m in [
-    Method("3dgs", dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS, **NO_GLASS,
-                        **PLAIN_PHOTO),
+    Method("3dgs", METHOD_3DGS,
            "one set of 3D Gaussians, plain alpha compositing (3DGRT-style ray tracing)",
            "ray-traced at the 3DGRT peak instead of rasterised; 3DGS's screen-space densification threshold replaced "
            "by our top-fraction rule"),
-    Method("2dgs", dict(**NOT_OURS, components="interface", **ALPHA, w_consistency=0.1, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
+    Method("2dgs", METHOD_2DGS,
            "one set of surfels + depth-normal consistency",
            "no depth distortion loss; ray-traced surfels"),
     Method("pgsr", dict(**NOT_OURS, components="interface", **ALPHA, w_consistency=0.3, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
            "planar surfels + single-view depth-normal consistency",
            "PGSR's multi-view geometric and photometric consistency terms are NOT implemented (they need pairs of "
            "rendered views per step); only the single-view part, with a higher weight"),
-    Method("envgs", dict(**NOT_OURS, components="interface,reflection", blend="envgs", **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
-           "interface + reflection set, C = (1 - beta) c_base + beta c_env, no Fresnel, no transmission",
+    Method("envgs", dict(**NOT_OURS, components="interface,reflection", blend="envgs", **NORMAL_PRIOR, **NO_GLASS,
+                         **PLAIN_PHOTO, refine_from=1.0),
+           "interface + reflection set, C = (1 - beta) c_base + beta c_env, no Fresnel, no transmission; the "
+           "monocular normal prior its paper uses (the dataset's, as GLINT gets it)",
            "the environment set is traced from the interface's expected depth like GLINT's (same as EnvGS); "
-           "no normal prior"),
+           "ray-traced surfels"),
     Method("refgs", dict(**NOT_OURS, components="interface", **ALPHA, sh_degree=3, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
            "surfels with view-dependent appearance",
            "Ref-GS's directional (split-sum) appearance factorisation is replaced by degree-3 SH colour: only the "
            "view dependence is kept"),
     Method("tsgs", dict(**NOT_OURS, components="interface,transmission", trans_masks="gt", w_plausibility=0.0, t_raise="free",
-                        **NO_PRIORS),
+                        **NORMAL_PRIOR),
            "surfels with a transparency attribute supervised by transparent masks",
            "masks are the GROUND-TRUTH glass masks (labelled so; TSGS uses image segmentation); the first-surface "
            "depth rule (densest window in the first 10 % of weight) is not implemented: depth is the expected depth "
            "of the interface, and what is seen through glass comes from a transmission set"),
-    Method("glint", {}, "all three sets, Fresnel first-order transport, L_trans (this project)"),
+    Method("glint", {}, "all three sets, Fresnel first-order transport, L_trans (glint_mi's defaults)"),
+    Method("glint-paper", PAPER,
+           "GLINT with the paper's choices: per-image depth fit over the whole image (MonoSDF), the supplement's "
+           "normal loss (1 - cos, unmasked before 10k/60k), t free, the paper's L_trans masks, all three sets",
+           "the whole-image depth fit is refitted every 2 % of the run on a grid of <= 2048 pixels per view"),
+    Method("3dgs-priors", {**METHOD_3DGS, **WITH_PRIORS},
+           "3DGS given the same depth and normal priors as GLINT (GLINT's terms and weights)", "prior parity row"),
+    Method("2dgs-priors", {**METHOD_2DGS, **WITH_PRIORS},
+           "2DGS given the same depth and normal priors as GLINT (GLINT's terms and weights)", "prior parity row"),
     # ablations of the supplement
     Method("glint-no-trans", dict(components="interface,reflection"), "GLINT without the transmission set"),
     Method("glint-no-refl", dict(components="interface,transmission"), "GLINT without the reflection set"),

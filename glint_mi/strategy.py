@@ -162,14 +162,17 @@ class Strategy:
                 d[role] = np.zeros(len(index))  # statistics restart after every change (as in 3DGS)
         return new
 
-    def densify_and_prune(self, it: int, role: str, gset: GaussianSet, adam, prune_large: bool) -> GaussianSet:
+    def densify_and_prune(self, it: int, role: str, gset: GaussianSet, adam, prune_large: bool,
+                          others: int = 0) -> GaussianSet:
+        """Clone / split / prune one set; ``others`` Gaussians of the method's other sets share its budget
+        (``max_gaussians`` counts every set together)."""
         cfg, n = self.cfg, len(gset)
         if n == 0 or role not in self.grad_sum:
             return gset
         a = gset.activated()
         g = self.mean_grad(role)
         smax = a["scales"][:, :2].max(1) if cfg.kernel == "surfel" else a["scales"].max(1)
-        room = max(0, cfg.max_gaussians - n)
+        room = max(0, cfg.max_gaussians - n - others)
         seen = self.count[role] > 0
         top = np.quantile(g[seen], 1.0 - cfg.densify_top) if seen.any() else np.inf
         # Right after an opacity reset (to 0.01) every Gaussian is below a paper-style threshold (0.05): for half a

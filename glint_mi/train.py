@@ -63,6 +63,8 @@ class Trainer:
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
                             glass_masks=cfg.trans_masks == "gt")
         self.report["priors"] = sorted(self.bank.has)
+        if cfg.depth_align == "image" and resume and getattr(self, "_resume_affine", None) is not None:
+            self.bank.depth_affine = self._resume_affine
         if cfg.depth_align == "sfm" and "depth" in self.bank.has:
             self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
             self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
@@ -178,7 +180,9 @@ class Trainer:
                 else ("refine" if "interface" not in trained else "joint"),
                 "depth": c.w_depth > 0 and "depth" in self.bank.has,
                 "sfm_depth": c.w_sfm_depth > 0 and self.bank.sfm_depth is not None,
-                "normal": c.w_normal > 0 and "normal" in self.bank.has and on(c.normal_from),
+                "normal": c.w_normal > 0 and "normal" in self.bank.has and (on(c.normal_from)
+                                                                           or c.normal_early == "unmasked"),
+                "normal_masked": on(c.normal_from),
                 "consistency": c.w_consistency > 0,
                 "direct": has_t and c.w_direct > 0,
                 "trans": (has_t or gt_masks) and c.w_trans > 0 and on(c.trans_from),
@@ -259,16 +263,53 @@ class Trainer:
 
     def _structure_now(self, st):
         c, it = self.cfg, self.it + 1
+        if c.depth_align == "image" and "depth" in self.bank.has and it % c.every(c.depth_refit) == 0:
+            self._fit_depth_per_image()
         reset = c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0
         if self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from):
             for role in sorted(st["trained"] & set(self.sets)):
+                others = sum(len(g) for r, g in self.active_sets().items() if r != role)
                 self.sets[role] = self.strategy.densify_and_prune(it, role, self.sets[role], self.adam,
-                                                                  prune_large=self.strategy.resets > 0)
+                                                                  prune_large=self.strategy.resets > 0,
+                                                                  others=others)
         if reset:
             for role in sorted(st["trained"] & set(self.sets)):
                 fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
                 self.strategy.reset(it, role, self.sets[role], self.adam, fields)
         self._auto_components(st)
+
+    def _fit_depth_per_image(self, max_rays: int = 2048) -> None:
+        """depth_align: image — the paper's per-image scale and shift of the depth prior (MonoSDF's closed form),
+        fitted over each whole training view: the interface's depth rendered on a grid of <= ``max_rays`` pixels
+        per view, least squares prior ~ w D + q (or w / D + q for a disparity prior) where both are valid; sets the
+        bank's per-view (w, q), which the depth loss then uses until the next refit."""
+        import drjit as dr
+        import mitsuba as mi
+
+        bank = self.bank
+        flats, vids = [], []
+        for i, (h, w) in enumerate(bank.sizes):
+            step = max(1, int(np.ceil(np.sqrt(h * w / max_rays))))
+            ys, xs = np.mgrid[step // 2:h:step, step // 2:w:step]
+            flats.append(bank.offsets[i] + ys.ravel() * w + xs.ravel())
+            vids.append(np.full(ys.size, i))
+        flat, vid = np.concatenate(flats), np.concatenate(vids)
+        ray = mi.Ray3f(mi.Point3f(*floats(bank.origins[vid])), mi.Vector3f(*floats(bank.dirs[flat])))
+        enabled, self.integ.enabled = self.integ.enabled, {"interface"}
+        out = self.integ.trace(ray, mi.Bool(True), forward=mi.Vector3f(*floats(bank.axes[vid, :, 2])))
+        self.integ.enabled = enabled
+        dr.eval(out["depth"], out["alpha"])
+        D, A = np.array(out["depth"], np.float64), np.array(out["alpha"])
+        P = bank.priors["depth"][flat, 0].astype(np.float64)
+        x = np.where(D > 1e-6, 1.0 / np.maximum(D, 1e-6), 0.0) if bank.depth_inverse else D
+        aff = np.full((len(bank.views), 2), np.nan)
+        for i in range(len(bank.views)):
+            m = (vid == i) & (P > 0) & (A > 0.5) & (D > 1e-6)
+            if m.sum() >= 8:
+                (w, q), *_ = np.linalg.lstsq(np.column_stack([x[m], np.ones(m.sum())]), P[m], rcond=None)
+                if w > 0:
+                    aff[i] = (w, q)
+        bank.depth_affine = aff
 
     def _glass_cue_check(self) -> None:
         """components: auto — the transmission set needs a glass cue to learn from: an albedo prior (the paper's
@@ -452,6 +493,8 @@ class Trainer:
         for role, gs in self.sets.items():
             for f in RAW_FIELDS:
                 arrays[f"set/{role}/{f}"] = getattr(gs, f)
+        if self.cfg.depth_align == "image" and self.bank.depth_affine is not None:  # refitted from the model
+            arrays["depth_affine"] = self.bank.depth_affine
         arrays.update({f"adam/{k}": v for k, v in self.adam.state_dict().items()})
         arrays.update({f"strategy/{k}": v for k, v in self.strategy.state_dict().items()})
         buf = io.BytesIO()
@@ -479,6 +522,7 @@ class Trainer:
         self.dropped = json.loads(str(z["dropped"]))
         self.report = json.loads(str(z["report"]))
         self.history = json.loads(str(z["history"]))
+        self._resume_affine = z.get("depth_affine")
         roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)
         self.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
         self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
