@@ -348,16 +348,20 @@ def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False)
 def component_gains(b, out: dict) -> dict:
     """How much each secondary set improves the batch's photometric fit (numpy, no gradient): the relative
     increase of the mean L1 error when its weight went to the interface instead (what dropping it would do, before
-    the interface adapts): gain_X = (E without X - E) / E, E = mean |C - photo|. Only traced sets have a gain."""
+    the interface adapts): gain_X = (E without X - E) / E, E = mean |C - photo| over the rays where the interface
+    is a surface (accumulated alpha >= 0.5). Only traced sets have a gain."""
     rows = lambda x: (lambda a: a.T if a.ndim == 2 and a.shape[0] == 3 else a)(np.array(x))
-    C, cI, gt = rows(out["rgb"]), rows(out["interface"]), b.rgb
+    surface = np.array(out["alpha"]) >= 0.5  # where the interface is a surface: right after an opacity reset the
+    if not surface.any():                    # 4 % Fresnel floor lets c_R brighten a dark, uncovered image
+        return {}
+    C, cI, gt = rows(out["rgb"])[surface], rows(out["interface"])[surface], b.rgb[surface]
     e = max(float(np.abs(C - gt).mean()), 1e-6)
     gains = {}
     for k, (name, key) in enumerate((("reflection", "reflection"), ("transmission", "transmission")), start=1):
         w = np.array(out["weights"][k])
         if w.ndim == 0 or not np.any(w):
             continue
-        without = C - w[:, None] * (rows(out[key]) - cI)
+        without = C - w[surface][:, None] * (rows(out[key])[surface] - cI)
         gains[f"gain_{name}"] = (float(np.abs(without - gt).mean()) - e) / e
     return gains
 

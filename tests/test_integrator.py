@@ -106,15 +106,39 @@ def test_fresnel_split_at_normal_incidence(rng):
     np.testing.assert_allclose(rgb, 0.04 * cR + 0.96 * cT, atol=1e-5)
 
 
+def _weights_reference(cos, beta, tau, ior=1.5, auto=False, reflect_min=0.05, transmit_min=1e-3):
+    """The paper's weights (glint-method.md section 2), written out: Schlick F = F0 + (1 - F0)(1 - cos)^5,
+    k_s = clamp(beta + (1 - beta) F, F0, 1), k_d = (1 - k_s)(1 - t), k_t = (1 - k_s) t; ``auto`` folds a weight
+    under its threshold into k_d."""
+    f0 = ((1 - ior) / (1 + ior)) ** 2
+    F = f0 + (1 - f0) * (1 - cos) ** 5
+    ks = np.clip(beta + (1 - beta) * F, f0, 1.0)
+    kd, kt = (1 - ks) * (1 - tau), (1 - ks) * tau
+    if auto:
+        kd = kd + np.where(ks > reflect_min, 0, ks) + np.where(kt > transmit_min, 0, kt)
+        ks, kt = np.where(ks > reflect_min, ks, 0), np.where(kt > transmit_min, kt, 0)
+    return kd, ks, kt
+
+
 @pytest.mark.parametrize("components", ["all", "auto"])
-def test_energy_weights_sum_to_one(rng, components):
-    sets = examples.display_case_sets(1500, seed=3)
-    b = render_buffers(mi.load_dict(examples.scene_dict(sets, width=48, height=27, components=components,
-                                                        aovs="weights,alpha")))
-    covered = b["alpha"][..., 0] > 0
-    assert covered.mean() > 0.3
-    np.testing.assert_allclose(b["weights"].sum(-1)[covered], 1.0, atol=1e-5)
-    assert np.all(b["weights"] >= -1e-7)
+@pytest.mark.parametrize("beta,tau,ior", [(0.0, 0.0, 1.5), (0.0, 0.6, 1.5), (0.3, 1.0, 1.5), (0.0, 0.3, 2.4)])
+def test_fresnel_weights_follow_schlick(rng, components, beta, tau, ior):
+    """Rays hit one opaque surfel plane (normal +z) at 0-89 degrees: k_d, k_s, k_t equal the written-out Schlick
+    weights at every angle (exponent 5, the angle, the beta term, the F0 clamp, ior), auto folding weak weights."""
+    plane = GaussianSet.from_activated([[0.0, 0.0, 0.0]], [100.0, 100.0, 0.01], opacities=1.0, colors=[[0.5] * 3],
+                                       specular=beta, transparency=tau)
+    sets = {"interface": plane, "reflection": random_set(rng, 50, center=(0, 0, -3)),
+            "transmission": random_set(rng, 50, center=(0, 0, 3))}
+    integ = make_integrator(sets, components=components, alpha_max=1 - 1e-7, ior=ior, aovs="weights")
+    angles = np.radians([0.0, 20.0, 45.0, 60.0, 75.0, 85.0, 89.0])
+    d = np.column_stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)])
+    out = integ.trace(rays(np.column_stack([np.zeros(len(d)), np.zeros(len(d)), np.full(len(d), -0.01)]), d),
+                      mi.Bool(True))
+    assert np.allclose(to_np(out["alpha"]), 1.0, atol=1e-5)
+    kd, ks, kt = _weights_reference(np.cos(angles), beta, tau, ior, auto=components == "auto")
+    np.testing.assert_allclose(to_np(out["ks"]), ks, atol=2e-5)
+    np.testing.assert_allclose(to_np(out["kt"]), kt, atol=2e-5)
+    np.testing.assert_allclose(to_np(out["kd"]), kd, atol=2e-5)
 
 
 def test_planar_depth_of_a_plane(rng):
