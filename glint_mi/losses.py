@@ -53,7 +53,9 @@ def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_c
     ``normal`` and ``prior`` are unit vectors in the same (camera) frame; the mask is detached.
     """
     cos = dr.dot(normal, prior)
-    mask = mi.Bool(valid) & (dr.detach(cos) >= tau_n) if masked else mi.Bool(valid)
+    mask = mi.Bool(valid) & dr.isfinite(dr.detach(cos))  # (as wide as the rays)
+    if masked:
+        mask &= dr.detach(cos) >= tau_n
     term = 1.0 - cos
     if form == "l1_cos":
         d = normal - prior

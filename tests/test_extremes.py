@@ -68,6 +68,9 @@ def test_empty_sets_and_ray_starting_inside(rng):
     # an empty interface: nothing is hit, the pixel is black (k_d = 1, c_I = 0)
     out = _finite_trace({"interface": empty, "reflection": big}, {}, [[0, 0, -10]], [[0, 0, 1]])
     assert np.abs(to_np(out["rgb"])).max() == 0 and to_np(out["kd"])[0] == 1
-    # a ray starting inside a Gaussian does not see it (documented limit of the shell tracer), and stays finite
-    out = _finite_trace({"interface": big}, {"interface": "ellipsoid"}, [[0, 0, 0]], [[0, 0, 1]])
-    assert to_np(out["alpha"])[0] == 0
+    # a ray starting inside a Gaussian sees it where its kernel lies ahead (the peak along the ray for a 3D Gaussian,
+    # the plane crossing for a surfel), and nothing where it lies behind; finite either way
+    for kernel in ("ellipsoid", "surfel"):
+        out = _finite_trace({"interface": big}, {"interface": kernel}, [[0, 0, -0.5], [0, 0, 0.5]], [[0, 0, 1]] * 2)
+        alpha = to_np(out["alpha"])
+        assert alpha[0] > 0.98 and alpha[1] == 0, (kernel, alpha)

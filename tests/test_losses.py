@@ -63,8 +63,13 @@ def test_normal_loss_cosine_mask():
     assert list(np.array(mask)) == [True, True, False]  # cos 10 deg, cos 70 deg = 0.34 >= 0.3, cos 100 deg < 0
     _, mask5 = normal_loss(n, p, tau_n=0.5)
     assert list(np.array(mask5)) == [True, False, False]
-    expected = np.mean([(s[i] + abs(c[i] - 1)) + (1 - c[i]) for i in (0, 1)])
-    np.testing.assert_allclose(float(np.array(loss)[0]), expected, rtol=1e-5)
+    # hand-computed: at 10 deg |n - p|_1 = 0.17365 + 0.01519, 1 - cos = 0.01519; at 70 deg 0.93969 + 0.65798, 0.65798
+    np.testing.assert_allclose(float(np.array(loss)[0]), 1.22984, rtol=1e-4)
+    paper, _ = normal_loss(n, p, tau_n=0.3, form="cos")  # the supplement's 1 - cos over the mask
+    np.testing.assert_allclose(float(np.array(paper)[0]), 0.336586, rtol=1e-4)
+    early, mask_all = normal_loss(n, p, tau_n=0.3, form="cos", masked=False)  # before 10k/60k: no mask
+    assert list(np.array(mask_all)) == [True, True, True]
+    np.testing.assert_allclose(float(np.array(early)[0]), 0.615607, rtol=1e-4)
 
 
 def test_transparency_masks_on_hand_made_depths():
