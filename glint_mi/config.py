@@ -148,8 +148,6 @@ class TrainConfig:
     # components: auto
     auto_trans_min: float = 0.005        # keep the transmission set if L_trans's transparent mask covers this
     auto_contrib_min: float = 0.005      # prune a set whose share of the image energy stays below this
-    auto_reflect_gain: float = 0.05      # without glass (no transmission set kept), keep the reflection set only if
-    #                                      it lowers the batch L1 error by this fraction (losses.component_gains)
     # run
     checkpoint_every: int = 200
     eval_every: int = 0                  # > 0: evaluate the test views every this many iterations and at the end

@@ -63,6 +63,12 @@ class Trainer:
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
                             glass_masks=cfg.trans_masks == "gt")
         self.report["priors"] = sorted(self.bank.has)
+        if not self.bank.has and "transmission" in self.sets:
+            self.log(f"no priors ({self.ds.root}/priors holds no depth, normal or albedo maps"
+                     + (", priors: none" if cfg.priors == "none" else "") + "): geometry comes from the photos, "
+                     "depth-normal consistency and the SfM points' depth; nothing tells glass from a wall, so "
+                     "components: auto keeps the interface alone (priors/PRIORS.json and the README say how to add "
+                     "an estimator's maps)")
         if cfg.depth_align == "image" and resume and getattr(self, "_resume_affine", None) is not None:
             self.bank.depth_affine = self._resume_affine
         if cfg.depth_align == "sfm" and "depth" in self.bank.has:
@@ -316,7 +322,7 @@ class Trainer:
         masks) or the SfM see-through cue against an aligned depth prior. Without either (no priors: a phone
         capture) L_trans has only the paper's depth gap between two sets that fit the same surfaces, which turns
         an opaque room into glass (the fox: 92 % of the wallpaper 'behind' when L_trans starts): the set is
-        dropped before training, and the run says so."""
+        dropped before training, with the reflection set (what glass would mirror), and the run says so."""
         c = self.cfg
         if c.components != "auto" or "transmission" not in self.sets or c.trans_cue == "none" \
                 or c.trans_masks == "gt":
@@ -328,6 +334,11 @@ class Trainer:
         self.report["components"]["transmission"] = {"kept": False, "iteration": 0, "why": why}
         self.dropped["transmission"] = why
         self.log(f"components auto: drop transmission: {why}")
+        if "reflection" in self.sets:  # what the glass would mirror: no glass, no reflection set (_auto_components)
+            why_r = "no glass (the transmission set is dropped): a diffuse surface's Fresnel floor is its colour's"
+            self.report["components"]["reflection"] = {"kept": False, "iteration": 0, "why": why_r}
+            self.dropped["reflection"] = why_r
+            self.log(f"components auto: drop reflection: {why_r}")
 
     def _auto_components(self, st) -> None:
         """components: auto — keep transmission / reflection only where the evidence calls for them."""
@@ -351,16 +362,15 @@ class Trainer:
                 why = (f"L_trans transparent mask covers {100 * cover:.2f} % of sampled pixels "
                        f"(threshold {100 * c.auto_trans_min:.2f} %), share of image energy {100 * share:.2f} %")
             else:
-                # GLINT's reflection set is what the glass interface mirrors; without glass, the 4 % Fresnel floor
-                # of every surface is a blur the interface's colour absorbs: then the set must earn its place by
-                # the photometric fit (fox, no glass: 2 % less L1 error; room b, with glass: 2 % too)
+                # GLINT's reflection set is what the glass interface mirrors. Without glass (no transmission set
+                # kept) the 4 % Fresnel floor of a diffuse surface is not separable from its colour, and the set
+                # only adds view-dependent capacity under a wrong name (the fox: it lowered the batch L1 by 9.5 %,
+                # room b with glass by 2 %): dropped, so a room without glass renders its interface alone
                 glass = "transmission" in self.sets and "transmission" not in self.dropped
-                gain = float(np.mean([h.get("gain_reflection", 0.0) for h in recent])) if recent else 0.0
-                keep = share >= c.auto_contrib_min and (glass or gain >= c.auto_reflect_gain)
+                keep = share >= c.auto_contrib_min and glass
                 why = (f"share of image energy k_s c_R = {100 * share:.2f} % (threshold "
                        f"{100 * c.auto_contrib_min:.2f} %); " + ("a transmission set is kept (glass)" if glass else
-                       f"no glass: it lowers the L1 error by {100 * gain:.1f} % (threshold "
-                       f"{100 * c.auto_reflect_gain:.0f} %)"))
+                       "no glass (no transmission set): a diffuse surface's Fresnel floor is its colour's"))
             self.report["components"][role] = {"kept": bool(keep), "iteration": self.it + 1, "why": why}
             self.log(f"components auto: {'keep' if keep else 'drop'} {role}: {why}")
             if not keep:
