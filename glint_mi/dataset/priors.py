@@ -86,7 +86,8 @@ class Realistic:
     field_sigma: float = 0.25            # smoothness of the error fields (Gaussian sigma, x image width)
     pixel_noise_deg: float = 2.0         # per-pixel normal noise (std, degrees)
     depth_noise: float = 0.005           # per-pixel multiplicative depth noise (std)
-    blur_px: float = 1.5                 # edge blur: estimators smooth across discontinuities
+    blur: float = 0.008                  # edge blur (Gaussian sigma, x image width; 1.5 px at 192 px): estimators
+    #                                      smooth across discontinuities
     depth_scale: tuple = (0.5, 2.0)      # per-image unknown scale ...
     depth_shift: tuple = (-0.3, 0.3)     # ... and shift (x the median depth)
     see_through_glass: float = 0.75      # probability per view that the estimator sees through the glass ...
@@ -179,7 +180,8 @@ def realistic_view(rng, c: Realistic, gt: dict, behind: dict, first_albedo, c2w)
     # normals: a smooth tilt field + pixel noise + edge blur, the tilt calibrated to the view's target
     tilt = np.stack([_field(rng, (h, w), sig) for _ in range(3)], -1)
     noise = np.radians(c.pixel_noise_deg) * rng.normal(size=(h, w, 3))
-    make_n = lambda a: _unit(_blur(_rotate(n_cam, a * tilt + noise), c.blur_px))
+    blur = c.blur * w
+    make_n = lambda a: _unit(_blur(_rotate(n_cam, a * tilt + noise), blur))
     target_n = float(np.clip(rng.normal(c.normal_mae_deg, c.normal_spread_deg), 5.0, 30.0))
     amp = _calibrate(make_n, lambda n: _angle_deg(n[off], n_gt[off]).mean() if off.any() else 0.0,
                      target_n, 0.0, 1.5)
@@ -187,7 +189,7 @@ def realistic_view(rng, c: Realistic, gt: dict, behind: dict, first_albedo, c2w)
     # depth: a smooth multiplicative warp + pixel noise + edge blur, then an unknown scale and shift
     warp = _field(rng, (h, w), sig)
     px = c.depth_noise * rng.normal(size=(h, w))
-    make_d = lambda b: np.where(valid, _blur(z_s * np.exp(b * warp) * (1 + px), c.blur_px), 0.0)
+    make_d = lambda b: np.where(valid, _blur(z_s * np.exp(b * warp) * (1 + px), blur), 0.0)
     target_d = float(np.clip(rng.normal(c.depth_absrel, c.depth_spread), 0.01, 0.15))
     bw = _calibrate(make_d, lambda d: affine_depth_error(d, gt["depth"], valid, off), target_d, 0.0, 1.0)
     a = rng.uniform(*c.depth_scale)
@@ -196,7 +198,7 @@ def realistic_view(rng, c: Realistic, gt: dict, behind: dict, first_albedo, c2w)
     depth = np.where(valid & (depth <= 0), 1e-6, depth)  # keep every valid pixel positive (0 = invalid)
     # albedo: the seen surface's, with a per-image gain and a smooth shading leak
     gain = rng.uniform(*c.albedo_gain) * np.exp(c.albedo_field * _field(rng, (h, w), sig))[..., None]
-    albedo = np.clip(_blur(alb_s * gain + c.albedo_noise * rng.normal(size=(h, w, 3)), c.blur_px), 0, 1)
+    albedo = np.clip(_blur(alb_s * gain + c.albedo_noise * rng.normal(size=(h, w, 3)), blur), 0, 1)
     rec = {"sees_through_glass": sees_through, "see_through_share_of_glass": float(m[glass].mean()) if glass.any()
            else None, "target_normal_mae_deg": target_n, "target_depth_absrel": target_d,
            "depth_scale": float(a), "depth_shift": float(shift)}

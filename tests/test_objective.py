@@ -1,0 +1,119 @@
+"""The objective's remaining pieces against independent references: D-SSIM (scikit-image's SSIM), the transparency
+regulariser and the plausibility term (hand-computed values and finite differences), and the stage schedule of both
+schedule variants."""
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+import pytest
+
+from glint_mi import losses as L
+from glint_mi.batch import patch_neighbours
+from glint_mi.config import TrainConfig
+
+
+def _f(a):
+    return mi.Float(np.asarray(a, np.float32).ravel())
+
+
+def test_dssim_equals_scikit_image_ssim_per_patch(rng):
+    """Each p x p patch is one SSIM window with uniform weights: 1 - mean over patches and channels of
+    scikit-image's SSIM of that patch (win_size p, uniform, population covariance, data range 1)."""
+    from skimage.metrics import structural_similarity
+
+    P, p = 5, 7
+    a = rng.uniform(0, 1, (P, p, p, 3))
+    b = np.clip(a + rng.normal(0, 0.15, a.shape), 0, 1)
+    ours = float(np.array(L.dssim(mi.Color3f(*[_f(a[..., c]) for c in range(3)]),
+                                  mi.Color3f(*[_f(b[..., c]) for c in range(3)]), p))[0])
+    ref = np.mean([structural_similarity(a[i, ..., c], b[i, ..., c], win_size=p, gaussian_weights=False,
+                                         use_sample_covariance=False, data_range=1.0)
+                   for i in range(P) for c in range(3)])
+    assert abs(ours - (1 - ref)) < 1e-5, (ours, 1 - ref)
+    same = float(np.array(L.dssim(mi.Color3f(*[_f(a[..., c]) for c in range(3)]),
+                                  mi.Color3f(*[_f(a[..., c]) for c in range(3)]), p))[0])
+    assert abs(same) < 1e-6
+
+
+def test_transparency_regulariser_values_and_gradient():
+    """entropy + mean t + edge-aware TV: t = 0.5 everywhere gives ln 2 + 0.5 (no TV); a step in t across an image
+    edge costs exp(-grad) of what it costs on a flat image; the gradient matches central differences."""
+    p, P = 4, 1
+    nb = patch_neighbours(P, p)
+    flat = _f(np.full(p * p, 0.5))
+    val = float(np.array(L.transparency_regulariser(flat, _f(np.zeros(len(nb[0]))), nb))[0])
+    assert abs(val - (np.log(2) + 0.5)) < 1e-5
+    step = np.full((p, p), 0.2)
+    step[:, 2:] = 0.8  # a vertical step between columns 1 and 2
+    t = _f(step)
+    tv = lambda g: float(np.array(L.transparency_regulariser(t, _f(np.full(len(nb[0]), g)), nb))[0])
+    base = tv(0.0) - tv(50.0)  # the TV part alone (exp(-50) ~ 0)
+    # TV = mean over the (p-1)^2 neighbour triples of |t_right - t| + |t_down - t|: 3 of 9 triples cross the step
+    assert abs(base - 3 * 0.6 / 9) < 1e-5
+    assert abs((tv(1.0) - tv(50.0)) - np.exp(-1.0) * base) < 1e-5
+    x = step.ravel().astype(np.float64)
+    ti = mi.Float(x.astype(np.float32))
+    dr.enable_grad(ti)
+    g_img = _f(np.full(len(nb[0]), 0.3))
+    dr.backward(L.transparency_regulariser(ti, g_img, nb))
+    g = np.array(dr.grad(ti))
+    for k in (0, 5, 10):
+        e = np.zeros_like(x)
+        e[k] = 1e-3
+        fd = (float(np.array(L.transparency_regulariser(_f(x + e), g_img, nb))[0])
+              - float(np.array(L.transparency_regulariser(_f(x - e), g_img, nb))[0])) / 2e-3
+        assert abs(fd - g[k]) < 2e-3 * max(1.0, abs(fd)), (k, fd, g[k])
+
+
+def test_plausibility_pulls_only_the_transmission_set():
+    """|D_T - D_I| / extent + (1 - <n_T, n_I>), weighted mean: hand-computed value; the gradient reaches D_T and
+    n_T only (the interface is detached)."""
+    d_i, d_t = _f([2.0, 2.0, 3.0]), _f([2.5, 2.0, 3.0])
+    n_i = mi.Vector3f(0, 0, -1)
+    n_t = mi.Vector3f(_f([0, 0.6, 0]), _f([0, 0, 0]), _f([-1, -0.8, -1]))
+    w = _f([1.0, 1.0, 0.0])
+    for x in (d_i, d_t, n_t):
+        dr.enable_grad(x)
+    loss = L.plausibility(d_t, d_i, n_t, n_i, w, extent=5.0)
+    assert abs(float(np.array(loss)[0]) - (0.5 / 5.0 + 0.2) / 2) < 1e-6  # ray 3 has weight 0
+    dr.backward(loss)
+    assert np.allclose(np.array(dr.grad(d_i)), 0)
+    assert np.allclose(np.array(dr.grad(d_t)), [0.5 / 5.0, 0.0, 0.0], atol=1e-6)  # sign(D_T - D_I) / extent / sum(w)
+    assert np.abs(np.array(dr.grad(n_t))).sum() > 0
+
+
+@pytest.mark.parametrize("variant", ["supplement", "release"])
+def test_stage_schedule(variant):
+    """Which sets are traced and trained and which terms are on, iteration by iteration, for 600 iterations."""
+    from types import SimpleNamespace
+
+    from glint_mi.train import Trainer
+
+    c = TrainConfig.for_preset("tiny", variant, iterations=600, sh_degree=2)
+    fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0, "transmission": 0, "reflection": 0}, dropped={},
+                           bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
+    stage = lambda it: Trainer.stage(fake, it)
+    at = c.at
+    s = stage(at(c.warmup) - 1)
+    if variant == "supplement":
+        assert s["traced"] == {"interface"} and s["name"] == "warm-up" and not s["trans"] and not s["plausibility"]
+    s = stage(max(at(c.transmission_from), at(c.reflection_from), at(c.warmup)))
+    assert s["traced"] == {"interface", "transmission", "reflection"} and s["trained"] == s["traced"]
+    assert s["name"] == "joint" and s["direct"]
+    assert not stage(at(c.trans_from) - 1)["trans"] and stage(at(c.trans_from))["trans"]
+    assert stage(at(c.plausibility_from))["plausibility"]
+    assert not stage(at(c.normal_from) - 1)["normal"] and stage(at(c.normal_from))["normal"]
+    assert not stage(at(c.treg_from) - 1)["treg"] and stage(at(c.treg_from))["treg"]
+    assert not stage(at(c.densify_until) - 1)["t_gate"] and stage(at(c.densify_until))["t_gate"]
+    last = stage(599)
+    if variant == "supplement":  # the refine stage freezes the interface
+        assert last["name"] == "refine" and "interface" not in last["trained"]
+        assert "interface" in stage(at(c.refine_from) - 1)["trained"]
+    else:
+        assert last["name"] == "joint" and "interface" in last["trained"]
+    assert [stage(at(c.sh_every) * k)["sh_degree"] for k in range(4)] == [0, 1, 2, 2]
+    assert stage(0)["depth"] and stage(0)["consistency"]
+    fake.dropped = {"transmission": "x", "reflection": "y"}  # dropped sets are never traced again
+    assert stage(599)["traced"] == {"interface"} and not stage(599)["trans"]
+    early = TrainConfig.for_preset("tiny", variant, iterations=600, normal_early="unmasked")
+    fake.cfg = early
+    assert stage(0)["normal"] and not stage(0)["normal_masked"] and stage(at(c.normal_from))["normal_masked"]
