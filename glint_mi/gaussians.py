@@ -32,7 +32,7 @@ def shell_factors(opacity, extent: float = SHELL_EXTENT) -> np.ndarray:
     return np.clip(np.sqrt(np.maximum(r2, 0.0)) / extent, MIN_SHELL_FACTOR, 1.0)
 
 
-EXTRA_FIELDS = ("specular", "transparency")  # logit-valued per-Gaussian extras written after ``opacity``
+EXTRA_FIELDS = ("specular", "transparency")  # logit-valued per-Gaussian extras, written after the 3DGS fields
 
 
 class GaussianDataError(ValueError):
@@ -188,11 +188,12 @@ class GaussianSet:
 
         n, k = len(self), self.sh.shape[1]
         names = list(PLY_BASE) + [f"f_dc_{i}" for i in range(3)] + [f"f_rest_{i}" for i in range(3 * (k - 1))]
-        names += ["opacity", *EXTRA_FIELDS] + [f"scale_{i}" for i in range(3)] + [f"rot_{i}" for i in range(4)]
+        # the standard 3DGS fields first, in their usual order (viewers read fixed offsets), GLINT's extras last
+        names += ["opacity"] + [f"scale_{i}" for i in range(3)] + [f"rot_{i}" for i in range(4)] + list(EXTRA_FIELDS)
         # 3DGS stores f_rest channel-major: all R coefficients 1..K-1, then G, then B.
         rest = np.transpose(self.sh[:, 1:, :], (0, 2, 1)).reshape(n, -1)
         cols = [self.means, np.zeros((n, 3), np.float32), self.sh[:, 0, :], rest, self.logit_opacity[:, None],
-                self.logit_specular[:, None], self.logit_transparency[:, None], self.log_scales, self.quats_wxyz]
+                self.log_scales, self.quats_wxyz, self.logit_specular[:, None], self.logit_transparency[:, None]]
         table = np.concatenate(cols, axis=1).astype(np.float32)
         rec = np.empty(n, dtype=[(nm, "f4") for nm in names])
         for i, nm in enumerate(names):

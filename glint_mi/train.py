@@ -248,8 +248,15 @@ class Trainer:
                     g["logit_specular"][:] = 0.0
             elif "transmission" not in self.sets:  # no transmission set: tau means nothing, keeps its initial value
                 g["logit_transparency"][:] = 0.0
-            for f, v in g.items():
-                np.nan_to_num(v, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+            bad = sum(int(np.count_nonzero(~np.isfinite(v))) for v in g.values())
+            if bad:  # zeroed for this step, counted in the log and the report (a NaN would poison Adam's moments)
+                for v in g.values():
+                    np.nan_to_num(v, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+                counts = self.report.setdefault("nonfinite_gradients", {})
+                counts[role] = counts.get(role, 0) + bad
+                if counts[role] == bad:
+                    self.log(f"iteration {self.it}: {bad} non-finite gradient entries in the {role} set, zeroed "
+                             f"(counted in report.json 'nonfinite_gradients')")
             if self._densifying():
                 self.strategy.accumulate(role, len(gs), g["means"], g["logit_opacity"])
             touched = (g["logit_opacity"] != 0) | np.any(g["means"] != 0, axis=1) | np.any(g["sh"][:, 0] != 0, axis=1)

@@ -29,8 +29,10 @@ def test_ply_is_standard_3dgs_layout(tmp_path, rng):
     g.save_ply(tmp_path / "a.ply")
     names = PlyData.read(str(tmp_path / "a.ply"))["vertex"].data.dtype.names
     assert names[:9] == ("x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2")
-    assert names[-7:] == ("scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
-    assert {"opacity", "specular", "transparency"} <= set(names)
+    # the standard fields at their usual offsets (viewers read them so), GLINT's extras after them
+    k = names.index("opacity")
+    assert names[k:k + 8] == ("opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
+    assert names[k + 8:] == ("specular", "transparency")
     # f_rest is channel-major in 3DGS files: f_rest_0..2 are the red coefficients 1..3
     rest = PlyData.read(str(tmp_path / "a.ply"))["vertex"]
     np.testing.assert_array_equal(rest["f_rest_1"], g.sh[:, 2, 0])

@@ -336,35 +336,19 @@ def test_selective_adam_steps_only_touched_rows(rng):
     assert g2.logit_opacity[0] - b2[0] < -0.15 and np.all(g2.logit_opacity[1:] == b2[1:])
 
 
-def test_transparency_lights_up_on_the_glass(room, tmp_path):
-    """All three sets, tiny budget (48 x 27, no SfM points, 200 iterations): t is higher on the glass than elsewhere.
-    At this size the transparency map is coarse (measured here: mean t 0.43 on glass vs 0.38 elsewhere); the IoU
-    threshold is checked at the quick scale by the slow test below."""
-    from glint_mi.evaluate import evaluate
-
-    tr = Trainer(tmp_path / "t", tiny_cfg(components="all", iterations=200), scene=read_scene(room.parent / "scene.xml"),
-                 log=lambda *a: None)
-    tr.train(progress=False)
-    res = evaluate(tr.integ_for_eval(), tr.ds.views, write=False)
-    t_glass, t_other = [], []
-    for v in tr.ds.views:
-        t, g = res["renders"][v.name]["transparency"], v.load_gt()["glass"] > 0.5
-        t_glass.append(t[g].mean())
-        t_other.append(t[~g].mean())
-    assert np.mean(t_glass) > 1.05 * np.mean(t_other), (np.mean(t_glass), np.mean(t_other))
-
-
-@pytest.mark.slow
-def test_transparency_iou_quick_scale(tmp_path):
-    """The bundled room, quick preset (800 iterations, ~10 min): transparency IoU above 0.1 on the test views
-    (measured 0.20; 0.37 after 1500 iterations)."""
+def test_quality_of_the_demo_room(tmp_path):
+    """`make demo`'s configuration (the bundled room, quick preset, ~45 s alone on 2 cores): every metric near what
+    is measured (three runs before this test: PSNR 26.3-27.0, normal MAE 7.6-7.8, AbsRel 0.033-0.037, t IoU
+    0.60-0.66, t off glass 0.02; the quick preset's seed spread is +-0.8 dB, +-0.16 t IoU). A veil over the room
+    (t off glass) or transparency missing on the glass fails it."""
     tr = Trainer(tmp_path / "q", TrainConfig.for_preset("quick"),
                  scene=read_scene(ROOT / "scenes" / "glass_room" / "optimize.xml"), log=lambda *a: None)
     tr.train(progress=False)
     from glint_mi.evaluate import evaluate
 
     m = evaluate(tr.integ_for_eval(), tr.ds.test_views, write=False)["metrics"]
-    assert m["t_iou"] > 0.1 and m["psnr"] > 22 and m["normal_mae"] < 20, m
+    assert m["psnr"] > 25.0 and m["normal_mae"] < 10.0 and m["absrel"] < 0.07, m
+    assert m["t_iou"] > 0.4 and m["t_off_glass"] < 0.08 and m["t_on_glass"] > 0.4, m
 
 
 def test_epochs_budget_sets_iterations(room, tmp_path):
