@@ -2,6 +2,7 @@
 
     python -m glint_mi.benchmark --data out/bench_data --preset bench --out docs/results/bench
     python -m glint_mi.benchmark --data DIR --methods glint,envgs --preset tiny --out OUT   # a subset
+    python -m glint_mi.benchmark --data DIR --ray ray://head:10001 --out OUT                # runs on a Ray cluster
 
 ``--data`` holds generated scenes (``python -m glint_mi.dataset make``; ``--make-data N`` generates N there first).
 One run per method x scene (x seed: ``--seeds N``, runs ``<method>@seed<k>`` for k > 0) under
@@ -110,6 +111,62 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
     return {k: v for k, v in out.items() if k not in ("per_view", "renders")}
 
 
+class ClusterError(RuntimeError):
+    """A Ray cluster that cannot be used; the message says why and what to do."""
+
+
+def _job(method, scene, run, preset, variant, seed, extra) -> dict:
+    """One (method, scene, seed) run, where it is executed (this process or a Ray worker): trains, resumes or skips
+    it (run_one), returns its metrics."""
+    res = run_one(method, Path(scene), Path(run), preset, variant, log=lambda *a: None, seed=seed, **extra)
+    return {"metrics": res["metrics"]}
+
+
+def run_jobs(jobs: list, preset: str, variant: str, extra: dict, ray_address: str | None = None) -> list[dict]:
+    """Every job (method, scene folder, run folder, seed), locally one after another, or with ``ray_address`` as
+    Ray tasks of 2 CPUs each on a cluster (``local``: a Ray instance on this machine; ``auto``: the cluster this
+    machine belongs to; else its address). The same run folders, so a sweep resumes the same way either way (the
+    folders must be on a filesystem every node sees). Results come back in the jobs' order."""
+    if not ray_address:
+        out = []
+        for m, scene, run, seed in jobs:
+            print(f"[{scene.name}] {m} seed {seed} ...", flush=True)
+            out.append(_job(m, scene, run, preset, variant, seed, extra))
+        return out
+    try:
+        import ray
+    except ImportError:
+        raise ClusterError("--ray needs the cluster extra: pip install -e '.[cluster]' (Ray)") from None
+    if ray_address not in ("local", "auto"):  # Ray retries an unreachable head for minutes: look first
+        import socket
+
+        host, _, port = ray_address.split("://")[-1].rpartition(":")
+        try:
+            socket.create_connection((host or "127.0.0.1", int(port)), timeout=5).close()
+        except (OSError, ValueError) as e:
+            raise ClusterError(f"cannot reach the Ray cluster at {ray_address!r}: {e}; start it with `ray start "
+                               f"--head` there, or give its address as ray://HOST:10001 or HOST:6379") from None
+    try:
+        if ray_address == "local":
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(address=ray_address, include_dashboard=False, log_to_driver=False)
+    except Exception as e:  # ConnectionError, RuntimeError: say which address failed
+        raise ClusterError(f"cannot reach the Ray cluster at {ray_address!r}: {e}") from None
+    try:
+        task = ray.remote(num_cpus=2)(_job)
+        futures = [task.remote(m, str(scene), str(run), preset, variant, seed, extra) for m, scene, run, seed in jobs]
+        names = {f: f"[{scene.name}] {m} seed {seed}" for f, (m, scene, _, seed) in zip(futures, jobs)}
+        print(f"{len(futures)} run(s) sent to Ray ({ray.cluster_resources().get('CPU', 0):.0f} CPUs)", flush=True)
+        pending = list(futures)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            print(f"{names[done[0]]} done ({len(futures) - len(pending)}/{len(futures)})", flush=True)
+        return ray.get(futures)
+    finally:
+        ray.shutdown()
+
+
 def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
     import matplotlib
 
@@ -194,6 +251,10 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", metavar="FIELD=VALUE",
                     help="a TrainConfig field for every method (e.g. eval_every=200 for convergence curves)")
     ap.add_argument("--out", type=Path, default=Path("out/benchmark"))
+    ap.add_argument("--ray", nargs="?", const="auto", default=None, metavar="ADDRESS",
+                    help="send each (scene, method, seed) run to a Ray cluster as a 2-CPU task: no ADDRESS or 'auto' "
+                         "= the cluster this machine is part of, 'local' = a Ray instance here, else the head's "
+                         "address (ray://host:10001 or host:6379); needs pip install -e '.[cluster]'")
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be >= 1")
@@ -225,19 +286,22 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
-    rows = []
     from .evaluate import machine
 
+    jobs = [(m, scene, args.out / "runs" / scene.name / (m if seed == 0 else f"{m}@seed{seed}"), seed)
+            for scene in scenes for seed in range(args.seeds) for m in methods
+            if not (m == PRIORS_ROW and seed > 0)]  # the prior maps do not depend on a seed
+    try:
+        results = run_jobs(jobs, args.preset, args.variant, extra, args.ray)
+    except ClusterError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    rows = [{"method": m, "scene": scene.name, "seed": seed, **res["metrics"]}
+            for (m, scene, _, seed), res in zip(jobs, results)]
     for scene in scenes:
         runs = {}
-        for seed in range(args.seeds):
-            for m in methods:
-                if m == PRIORS_ROW and seed > 0:  # the maps do not depend on a seed
-                    continue
-                run = args.out / "runs" / scene.name / (m if seed == 0 else f"{m}@seed{seed}")
-                print(f"[{scene.name}] {m} seed {seed} ...", flush=True)
-                res = run_one(m, scene, run, args.preset, args.variant, log=lambda *a: None, seed=seed, **extra)
-                rows.append({"method": m, "scene": scene.name, "seed": seed, **res["metrics"]})
+        for m, sc, run, _ in jobs:
+            if sc == scene:
                 runs.setdefault(m, run)
         (args.out / "figures").mkdir(exist_ok=True)
         figure(scene.name, runs, args.out / "figures" / f"{scene.name}.png")

@@ -121,3 +121,25 @@ def test_tradeoff_script_tiny(tmp_path):
     assert not (tmp_path / "runs" / "resolution" / "train_1_1_res").exists()
     md = (tmp_path / "tradeoff.md").read_text()
     assert (tmp_path / "tradeoff.png").exists() and "glint mesh mode" in md and "| path | 3 |" in md
+
+
+def test_benchmark_on_a_local_ray_instance(tmp_path):
+    """--ray local: the same runs as Ray tasks (2 CPUs each) on a Ray instance started here; results gathered in
+    the same CSV, finished runs skipped on a rerun, an unreachable cluster refused in one line."""
+    pytest.importorskip("ray")
+    data = tmp_path / "data"
+    make_scene(data / "scene_000", seed=1, preset=Preset.named("tiny", views=6, spp=16), sfm="none")
+    out = tmp_path / "bench"
+    cmd = [sys.executable, "-m", "glint_mi.benchmark", "--data", str(data), "--preset", "tiny", "--methods",
+           "2dgs,3dgs", "--iterations", "6", "--out", str(out), "--ray", "local"]
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    assert "2 run(s) sent to Ray" in r.stdout
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert [(x["method"], x["scene"]) for x in rows] == [("2dgs", "scene_000"), ("3dgs", "scene_000")]
+    assert all(float(x["psnr"]) > 0 for x in rows)
+    mtime = (out / "runs" / "scene_000" / "3dgs" / "metrics.json").stat().st_mtime
+    assert subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600).returncode == 0
+    assert (out / "runs" / "scene_000" / "3dgs" / "metrics.json").stat().st_mtime == mtime
+    bad = subprocess.run(cmd[:-1] + ["127.0.0.1:1"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert bad.returncode == 2 and "cannot reach the Ray cluster at '127.0.0.1:1'" in bad.stderr
