@@ -30,12 +30,16 @@ COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae
 
 
 def scenes_in(data: Path) -> list[Path]:
-    # a scene still being generated (<name>.partial) is not a scene yet
-    found = sorted(p.parent for p in Path(data).glob("*/split.json") if not p.parent.name.endswith(".partial"))
+    """The scenes of ``data``: the folder itself when it is a dataset (a capture: transforms.json or sparse/), else
+    its generated scenes (sub-folders with split.json; one still being generated, <name>.partial, is not one)."""
+    data = Path(data)
+    if (data / "transforms.json").exists() or (data / "sparse").exists():
+        return [data]
+    found = sorted(p.parent for p in data.glob("*/split.json") if not p.parent.name.endswith(".partial"))
     if not found:
-        raise FileNotFoundError(f"{data}: no generated scenes (folders with split.json); make them with "
-                                f"`python -m glint_mi.dataset make {data} --scenes 5 --preset bench` or pass "
-                                f"--make-data 5.")
+        raise FileNotFoundError(f"{data}: neither a dataset (transforms.json, sparse/) nor a folder of generated "
+                                f"scenes (folders with split.json); make them with `python -m glint_mi.dataset make "
+                                f"{data} --scenes 5 --preset bench` or pass --make-data 5.")
     return found
 
 
@@ -86,7 +90,8 @@ def score_priors(scene_dir: Path, out: Path | None = None) -> dict:
     return res
 
 
-def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, log=print, **extra) -> dict:
+def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, log=print, missing: str = "error",
+            **extra) -> dict:
     """Train (or resume, or skip when finished) one method on one scene and evaluate it; returns the metrics."""
     from .evaluate import evaluate
     from .scene import read_scene, scene_xml
@@ -102,7 +107,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
     else:
         run.mkdir(parents=True, exist_ok=True)
         xml = run / "scene.xml"
-        xml.write_text(scene_xml(scene_dir))
+        xml.write_text(scene_xml(scene_dir, missing=missing))
         trainer = Trainer(run, cfg, scene=read_scene(xml), log=log)
     (run / "method.json").write_text(json.dumps({"method": method, "overrides": METHODS[method].overrides,
                                                  "differs": METHODS[method].differs}, indent=1))
@@ -115,14 +120,16 @@ class ClusterError(RuntimeError):
     """A Ray cluster that cannot be used; the message says why and what to do."""
 
 
-def _job(method, scene, run, preset, variant, seed, extra) -> dict:
+def _job(method, scene, run, preset, variant, seed, extra, missing="error") -> dict:
     """One (method, scene, seed) run, where it is executed (this process or a Ray worker): trains, resumes or skips
     it (run_one), returns its metrics."""
-    res = run_one(method, Path(scene), Path(run), preset, variant, log=lambda *a: None, seed=seed, **extra)
+    res = run_one(method, Path(scene), Path(run), preset, variant, log=lambda *a: None, missing=missing, seed=seed,
+                  **extra)
     return {"metrics": res["metrics"]}
 
 
-def run_jobs(jobs: list, preset: str, variant: str, extra: dict, ray_address: str | None = None) -> list[dict]:
+def run_jobs(jobs: list, preset: str, variant: str, extra: dict, ray_address: str | None = None,
+             missing: str = "error") -> list[dict]:
     """Every job (method, scene folder, run folder, seed), locally one after another, or with ``ray_address`` as
     Ray tasks of 2 CPUs each on a cluster (``local``: a Ray instance on this machine; ``auto``: the cluster this
     machine belongs to; else its address). The same run folders, so a sweep resumes the same way either way (the
@@ -131,7 +138,7 @@ def run_jobs(jobs: list, preset: str, variant: str, extra: dict, ray_address: st
         out = []
         for m, scene, run, seed in jobs:
             print(f"[{scene.name}] {m} seed {seed} ...", flush=True)
-            out.append(_job(m, scene, run, preset, variant, seed, extra))
+            out.append(_job(m, scene, run, preset, variant, seed, extra, missing))
         return out
     try:
         import ray
@@ -155,7 +162,8 @@ def run_jobs(jobs: list, preset: str, variant: str, extra: dict, ray_address: st
         raise ClusterError(f"cannot reach the Ray cluster at {ray_address!r}: {e}") from None
     try:
         task = ray.remote(num_cpus=2)(_job)
-        futures = [task.remote(m, str(scene), str(run), preset, variant, seed, extra) for m, scene, run, seed in jobs]
+        futures = [task.remote(m, str(scene), str(run), preset, variant, seed, extra, missing)
+                   for m, scene, run, seed in jobs]
         names = {f: f"[{scene.name}] {m} seed {seed}" for f, (m, scene, _, seed) in zip(futures, jobs)}
         print(f"{len(futures)} run(s) sent to Ray ({ray.cluster_resources().get('CPU', 0):.0f} CPUs)", flush=True)
         pending = list(futures)
@@ -174,10 +182,26 @@ def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
     import matplotlib.pyplot as plt
     from PIL import Image
 
-    cols = [("rgb", "RGB"), ("depth", "depth"), ("normal", "normal"), ("t", "transparency"), ("cI", "c_I"),
-            ("cR", "c_R"), ("cT", "c_T")]
-    names = list(runs)
-    fig, ax = plt.subplots(len(names), len(cols), figsize=(2.2 * len(cols), 1.45 * len(names) + 0.4), squeeze=False)
+    cols = [("photo", "photo"), ("rgb", "RGB"), ("depth", "depth"), ("normal", "normal"), ("t", "transparency"),
+            ("cI", "c_I"), ("cR", "c_R"), ("cT", "c_T")]
+    names = [n for n in runs if (runs[n] / "renders").is_dir()]  # rows with renders (not the priors row)
+    if not names:
+        return
+    first = sorted((runs[names[0]] / "renders").glob("*_rgb.png"))
+    photo = None
+    if first:  # the test photo at the renders' resolution, from the run's own dataset
+        from .config import TrainConfig
+        from .runs import load_run_dataset
+
+        try:
+            ds = load_run_dataset(runs[names[0]], TrainConfig.load(runs[names[0]] / "config.json"))
+            photo = ds.view(first[0].name[:-len("_rgb.png")]).load_image()
+        except Exception:  # a figure is not worth failing a benchmark for
+            photo = None
+    h, w = (photo.shape[:2] if photo is not None else (9, 16))
+    size = 2.2 * min(1.0, w / h * 9 / 16) if h > w else 2.2
+    fig, ax = plt.subplots(len(names), len(cols), figsize=(size * len(cols), size * h / w * len(names) + 0.4),
+                           squeeze=False)
     for i, name in enumerate(names):
         per = sorted((runs[name] / "renders").glob("*_rgb.png"))
         view = per[0].name[:-len("_rgb.png")] if per else None
@@ -185,7 +209,9 @@ def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
             a = ax[i, j]
             a.axis("off")
             f = runs[name] / "renders" / f"{view}_{key}.png"
-            if view and f.exists():
+            if key == "photo" and photo is not None:
+                a.imshow(photo)
+            elif view and f.exists():
                 img = np.asarray(Image.open(f))
                 a.imshow(img, cmap="gray" if img.ndim == 2 else None, vmin=0, vmax=255)  # t: 0..1, not rescaled
             if i == 0:
@@ -251,6 +277,8 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", metavar="FIELD=VALUE",
                     help="a TrainConfig field for every method (e.g. eval_every=200 for convergence curves)")
     ap.add_argument("--out", type=Path, default=Path("out/benchmark"))
+    ap.add_argument("--skip-missing", action="store_true",
+                    help="leave out frames whose image is missing (a capture such as the instant-ngp fox)")
     ap.add_argument("--ray", nargs="?", const="auto", default=None, metavar="ADDRESS",
                     help="send each (scene, method, seed) run to a Ray cluster as a 2-CPU task: no ADDRESS or 'auto' "
                          "= the cluster this machine is part of, 'local' = a Ray instance here, else the head's "
@@ -292,7 +320,8 @@ def main(argv=None) -> int:
             for scene in scenes for seed in range(args.seeds) for m in methods
             if not (m == PRIORS_ROW and seed > 0)]  # the prior maps do not depend on a seed
     try:
-        results = run_jobs(jobs, args.preset, args.variant, extra, args.ray)
+        results = run_jobs(jobs, args.preset, args.variant, extra, args.ray,
+                           missing="skip" if args.skip_missing else "error")
     except ClusterError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
