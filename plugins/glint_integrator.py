@@ -259,10 +259,11 @@ class GlintIntegrator(GaussianPasses):
             cb.put(role, s.shape, mi.ParamFlags.Differentiable)
 
     def parameters_changed(self, keys=[]):
-        # A set's `data` changed: rebuild that sub-scene's BVH (the shape itself only marks itself dirty).
+        # A set changed: its Mitsuba BVH is rebuilt when a bvh traversal next needs it, its native shells on the
+        # next k-buffer query (the shape itself only marks itself dirty).
         for role, s in self.sets.items():
             if not keys or any(k == role or k.startswith(role + ".") for k in keys):
-                s.scene.parameters_changed()
+                s.bvh_stale = True
                 s.refresh()
 
     def to_string(self):

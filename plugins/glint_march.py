@@ -114,6 +114,7 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
     def _march_bvh(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot):
         replay = adjoint is not None
         t_stop = self._t_stop(weight)
+        bvh = gs.bvh_scene()
         origin = mi.Point3f(dr.detach(o0))
         dd = mi.Vector3f(dr.detach(d))
         # Mitsuba's shell test never reports a shell that contains the ray origin: walk from one shell diameter
@@ -129,7 +130,7 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
         active = mi.Bool(active)
         while dr.hint(active, mode="evaluated" if ad else "symbolic", label=f"glint {gs.role}",
                       exclude=[listed, slot]):  # a scatter target and a read-only index, not loop state
-            pi = gs.scene.ray_intersect_preliminary(mi.Ray3f(o, dd), coherent=False, active=active)
+            pi = bvh.ray_intersect_preliminary(mi.Ray3f(o, dd), coherent=False, active=active)
             hit = active & pi.is_valid()
             p = o + dd * pi.t
             # Just past a shell entry the float32 shell test can report the same primitive again: each Gaussian
