@@ -36,8 +36,11 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
     if args.config:
         TrainConfig.load(args.config)  # validates, with errors naming the file
         values.update(json.loads(args.config.read_text()))
-    for key in ("components", "max_order"):
-        if scene_props and key in scene_props:
+    from .methods import METHODS
+
+    method = getattr(args, "method", None) or "glint"
+    for key in ("components", "max_order"):  # the scene's, unless the method fixes it (3dgs: the interface alone)
+        if scene_props and key in scene_props and key not in METHODS.get(method, METHODS["glint"]).overrides:
             values[key] = scene_props[key]
     if args.iterations:
         values["iterations"], values["epochs"] = args.iterations, 0.0
@@ -49,7 +52,7 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
     values.pop("preset", None), values.pop("variant", None)
     from .methods import config_for
 
-    return config_for(getattr(args, "method", None) or "glint", preset, variant, **values)
+    return config_for(method, preset, variant, **values)
 
 
 def main(argv=None) -> int:

@@ -376,6 +376,11 @@ def test_epochs_budget_sets_iterations(room, tmp_path):
                                                       for v in load_dataset(room).train_views) / 256)
     args = argparse.Namespace(config=None, iterations=50, seed=None, set=["epochs=4"], preset="quick", variant=None)
     assert build_config(args).epochs == 4.0  # --set wins over the flag's reset
+    # the scene XML's components apply unless the method fixes them (3dgs is the interface alone)
+    m = argparse.Namespace(**{**vars(args), "method": "3dgs"})
+    assert build_config(m, {"components": "auto"}).components == "interface"
+    assert build_config(argparse.Namespace(**{**vars(args), "method": "glint"}), {"components": "all"}).components \
+        == "all"
     args.set = []
     c = build_config(args)
     assert (c.iterations, c.epochs) == (50, 0.0) and c.with_budget(px).iterations == 50
