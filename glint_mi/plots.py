@@ -69,18 +69,21 @@ def convergence_figure(curves: dict[str, list[dict]], path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    panels = [("psnr", "PSNR (dB)"), ("normal_mae", "normal MAE (deg)"), ("absrel", "depth AbsRel"),
+    panels = [("psnr", "PSNR (dB)"), ("ssim", "SSIM"), ("normal_mae", "normal MAE (deg)"), ("absrel", "depth AbsRel"),
               ("t_iou", "transparency IoU"), ("t_off_glass", "mean t off glass")]
+    finite = lambda key: any(np.isfinite(float(r.get(key, "nan") or "nan")) for rows in curves.values() for r in rows)
+    panels = [p for p in panels if finite(p[0])]  # a capture without ground truth has image metrics only
     methods = sorted({label.split(" / ")[0] for label in curves})
     scenes = sorted({label.split(" / ")[-1] for label in curves})
     colour = {m: f"C{i}" for i, m in enumerate(methods)}
     marker = {s: "os^vDx*+"[i % 8] for i, s in enumerate(scenes)}
-    fig, ax = plt.subplots(1, len(panels), figsize=(3.3 * len(panels), 3.0))
+    fig, ax = plt.subplots(1, len(panels), figsize=(3.3 * len(panels), 3.0), squeeze=False)
+    ax = ax[0]
     for label, rows in curves.items():
         m, sc = label.split(" / ")[0], label.split(" / ")[-1]
         x = [float(r["train_s"]) / 60 for r in rows]
         for a, (key, title) in zip(ax, panels):
-            a.plot(x, [float(r[key]) for r in rows], color=colour[m], marker=marker[sc], ms=3, lw=1,
+            a.plot(x, [float(r.get(key, "nan") or "nan") for r in rows], color=colour[m], marker=marker[sc], ms=3, lw=1,
                    label=label if a is ax[0] else None)
     for a, (_, title) in zip(ax, panels):
         a.set_title(title, fontsize=9)
