@@ -56,7 +56,7 @@ class Batch:
 
 
 class RayBank:
-    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: bool = False):
+    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: str | None = None):
         """Photos, priors and rays of ``views`` at their own resolution (a dataset loaded with ``downscale`` k
         gives views whose images, priors and ground truth are block-averaged by k)."""
         self.views = views
@@ -78,13 +78,21 @@ class RayBank:
         self.cue = None  # see see_through_cue
         self.sfm_depth = None  # see set_sfm_depth
         self.glass = None
-        if glass_masks:
+        if glass_masks == "gt":  # ground truth (labelled so wherever it is used)
             gts = [v.load_gt() for v in views]
             if any(g is None for g in gts):
                 from .data import DatasetError
 
                 raise DatasetError(f"{root}: trans_masks = gt needs gt/<view>.exr for every training view.")
             self.glass = np.concatenate([g["glass"].reshape(-1) for g in gts]).astype(np.float32)
+        elif glass_masks == "prior":  # a segmentation model's masks (priors/glass/)
+            maps = [load_prior(root, v, "glass") for v in views]
+            if any(m is None for m in maps):
+                from .data import DatasetError
+
+                raise DatasetError(f"{root}: trans_masks = prior needs priors/glass/<view>.(npy|png|exr) for every "
+                                   f"training view (a segmentation model's glass masks).")
+            self.glass = np.concatenate([m.reshape(-1) for m in maps]).astype(np.float32)
 
     def align_depth_priors(self, points: np.ndarray | None, min_points: int = 12, trials: int = 256,
                            seed: int = 0) -> dict:

@@ -48,7 +48,8 @@ class TrainConfig:
     #                                      (glint_gaussians' opacity_shells); false: 3.33 sigma for every opacity
     blend: str = "fresnel"               # fresnel (GLINT) | envgs: (1 - beta) c_I + beta c_R | alpha: plain compositing
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
-    trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | gt (ground-truth glass masks; TSGS baseline)
+    trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | prior (a segmentation model's masks in
+    #                                      priors/glass/: the TSGS baseline) | gt (ground-truth glass masks, labelled)
     # initialisation (method section 1)
     init_opacity: float = 0.1
     grid_n: int = 32                     # reflection grid N^3 cells ...
@@ -219,7 +220,7 @@ class TrainConfig:
         need(self.priors in ("all", "none"), "priors", "use all or none")
         need(self.traversal in ("auto", "kbuffer", "bvh"), "traversal", "use auto, kbuffer or bvh")
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
-        need(self.trans_masks in ("depth_gap", "gt"), "trans_masks", "use depth_gap or gt")
+        need(self.trans_masks in ("depth_gap", "prior", "gt"), "trans_masks", "use depth_gap, prior or gt")
         need(self.depth_align in ("batch", "sfm", "image"), "depth_align", "use sfm, image or batch")
         need(self.normal_loss in ("cos", "l1_cos"), "normal_loss", "use cos (the paper) or l1_cos")
         need(self.normal_early in ("off", "unmasked"), "normal_early", "use off or unmasked (the paper)")

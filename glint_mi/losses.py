@@ -292,7 +292,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                         + np.abs(img[:, 1:, :-1] - img[:, :-1, :-1]).mean(-1))  # at the nb pixels, in order
                 grad_i = edge.reshape(-1) * 10.0
                 parts["treg"] = c.w_treg * transparency_regulariser(t, floats(grad_i), nb)
-        if st["trans"] and c.trans_masks == "gt":  # TSGS baseline: supervised by ground-truth glass masks
+        if st["trans"] and c.trans_masks in ("gt", "prior"):  # TSGS: supervised by given glass masks
             g = b.glass.reshape(b.patches, p, p) > 0.5
             w_t, w_o = (erode(m).ravel().astype(np.float32) for m in (g, ~g))
             stats["mask_t"] = float(np.mean(w_t > 0))

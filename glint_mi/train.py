@@ -61,7 +61,7 @@ class Trainer:
             self._fresh()
         cfg = self.cfg
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
-                            glass_masks=cfg.trans_masks == "gt")
+                            glass_masks=cfg.trans_masks if cfg.trans_masks in ("gt", "prior") else None)
         self.report["priors"] = sorted(self.bank.has)
         if not self.bank.has and "transmission" in self.sets:
             self.log(f"no priors ({self.ds.root}/priors holds no depth, normal or albedo maps"
@@ -181,7 +181,7 @@ class Trainer:
         if c.refine_from < 1.0 and on(c.refine_from) and len(traced) > 1:
             trained.discard("interface")  # supplement: the interface is frozen in the refine stage
         has_t = "transmission" in traced
-        gt_masks = c.trans_masks == "gt"
+        gt_masks = c.trans_masks in ("gt", "prior")  # masks given from outside (TSGS)
         return {"traced": traced, "trained": trained, "name": "warm-up" if traced == {"interface"} and not on(c.warmup)
                 else ("refine" if "interface" not in trained else "joint"),
                 "depth": c.w_depth > 0 and "depth" in self.bank.has,
@@ -332,7 +332,7 @@ class Trainer:
         dropped before training, with the reflection set (what glass would mirror), and the run says so."""
         c = self.cfg
         if c.components != "auto" or "transmission" not in self.sets or c.trans_cue == "none" \
-                or c.trans_masks == "gt":
+                or c.trans_masks in ("gt", "prior"):
             return
         if "albedo" in self.bank.has or self.bank.cue is not None:
             return

@@ -419,6 +419,13 @@ def test_realistic_priors_measure_like_an_estimator(scene_dir, tmp_path):
     assert len(through) >= 3 and 0.3 <= np.mean(through) < 1.0, through
     assert np.mean(glass_albedo) > 0.01  # the seen surface's albedo, not a constant painted over the mask
     assert abs(record["measured"]["normal_mae_deg_off_glass"] - np.mean(n_err)) < 1e-3
+    # glass masks as a segmentation model gives them (TSGS's input): near the truth, not equal to it
+    ious = []
+    for v in ds.views:
+        m, g = load_prior(work, v, "glass") > 0.5, v.load_gt()["glass"] > 0.5
+        if g.sum() > 10:
+            ious.append((m & g).sum() / max((m | g).sum(), 1))
+    assert 0.3 < np.mean(ious) < 0.97 and abs(record["measured"]["glass_mask_iou"] - np.mean(ious)) < 0.2, ious
 
 
 def test_cycles_rendered_scene_is_a_complete_dataset(tmp_path):

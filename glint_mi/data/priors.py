@@ -1,4 +1,5 @@
-"""Per-view geometry and albedo priors as estimators write them: ``priors/{depth,normal,albedo}/<view>.<ext>``.
+"""Per-view priors as estimators write them: ``priors/{depth,normal,albedo,glass}/<view>.<ext>`` (glass: a
+segmentation model's glass mask, what TSGS trains with).
 
 Files: ``.npy`` (float arrays), ``.exr`` (float; depth in Z, Y or R; normals in N.X N.Y N.Z, X Y Z or R G B; albedo
 in R G B), ``.png`` / ``.tif`` (8- or 16-bit; normals and albedo [0, 1]-encoded). ``priors/PRIORS.json`` names the
@@ -24,7 +25,7 @@ import numpy as np
 from .errors import DatasetError
 from .images import fit_to
 
-KINDS = ("depth", "normal", "albedo")
+KINDS = ("depth", "normal", "albedo", "glass")  # glass: a segmentation model's glass mask in [0, 1] (TSGS's masks)
 EXTS = (".npy", ".exr", ".png", ".tif", ".tiff")
 DEPTH_TYPES = ("depth", "disparity")
 NORMAL_FRAMES = ("opencv", "opengl")
@@ -80,7 +81,7 @@ def _read_exr(p: Path, kind: str) -> np.ndarray:
 
     with OpenEXR.File(str(p), separate_channels=True) as f:
         ch = {k: np.array(v.pixels) for k, v in f.channels().items()}
-    names = {"depth": (("Z",), ("Y",), ("R",)), "normal": (("N.X", "N.Y", "N.Z"), ("X", "Y", "Z"), ("R", "G", "B")),
+    names = {"depth": (("Z",), ("Y",), ("R",)), "glass": (("T",), ("Y",), ("R",)), "normal": (("N.X", "N.Y", "N.Z"), ("X", "Y", "Z"), ("R", "G", "B")),
              "albedo": (("R", "G", "B"),)}[kind]
     found = next((n for n in names if all(c in ch for c in n)), None)
     if found is None:
@@ -100,7 +101,7 @@ def prior_file(root: Path, view, kind: str) -> Path | None:
 def load_prior(root: Path, view, kind: str, conventions: dict | None = None) -> np.ndarray | None:
     """The ``kind`` prior of ``view`` at the view's resolution in glint_mi's conventions, or None when absent:
     depth [H,W] (as the file's type says: depth or disparity; 0 = invalid), normal [H,W,3] unit vectors in OpenCV
-    camera axes facing the camera (0 = invalid), albedo [H,W,3] linear RGB."""
+    camera axes facing the camera (0 = invalid), albedo [H,W,3] linear RGB, glass [H,W] in [0, 1]."""
     if kind not in KINDS:
         raise PriorError(f"unknown prior kind '{kind}'; use one of {KINDS}.")
     p = prior_file(root, view, kind)
@@ -110,9 +111,9 @@ def load_prior(root: Path, view, kind: str, conventions: dict | None = None) -> 
     encoded = p.suffix.lower() in (".png", ".tif", ".tiff")
     arr = np.load(p) if p.suffix == ".npy" else _read_exr(p, kind) if p.suffix == ".exr" else _read_image(p)
     arr = np.asarray(arr, np.float32)
-    if kind == "depth" and arr.ndim == 3:
+    if kind in ("depth", "glass") and arr.ndim == 3:
         arr = arr[..., 0]
-    if kind != "depth":
+    if kind not in ("depth", "glass"):
         if arr.ndim != 3 or arr.shape[-1] < 3:
             raise PriorError(f"{p}: shape {arr.shape}; a {kind} prior needs 3 channels.")
         arr = arr[..., :3]

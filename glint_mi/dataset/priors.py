@@ -95,6 +95,9 @@ class Realistic:
     albedo_gain: tuple = (0.8, 1.2)      # per-image brightness error of the albedo estimator
     albedo_field: float = 0.15           # smooth multiplicative albedo error (shading leak, std of log gain)
     albedo_noise: float = 0.02
+    mask_miss: float = 0.15              # glass masks (a segmentation model's, for TSGS): a view's glass missed ...
+    mask_false: float = 0.2              # ... a false blob elsewhere, with these probabilities per view
+    mask_edge: float = 0.015             # boundary error (x image width, smooth along the edge)
 
 
 MODELS = {"realistic": Realistic, "ideal": Corruption}
@@ -199,11 +202,22 @@ def realistic_view(rng, c: Realistic, gt: dict, behind: dict, first_albedo, c2w)
     # albedo: the seen surface's, with a per-image gain and a smooth shading leak
     gain = rng.uniform(*c.albedo_gain) * np.exp(c.albedo_field * _field(rng, (h, w), sig))[..., None]
     albedo = np.clip(_blur(alb_s * gain + c.albedo_noise * rng.normal(size=(h, w, 3)), blur), 0, 1)
-    rec = {"sees_through_glass": sees_through, "see_through_share_of_glass": float(m[glass].mean()) if glass.any()
+    # glass mask (segmentation): ragged boundary, whole panes missed in some views, false blobs in others
+    edge = _blur(glass.astype(np.float64), max(c.mask_edge * w, 0.5))
+    mask = (edge > 0.5 + 0.35 * np.tanh(_field(rng, (h, w), sig))) & valid
+    missed = bool(rng.random() < c.mask_miss)
+    if missed:
+        mask[:] = False
+    if rng.random() < c.mask_false:
+        blob = _field(rng, (h, w), 0.1 * w)
+        mask |= (blob > np.quantile(blob, 0.97)) & valid & ~glass
+    union = (mask | glass).sum()
+    rec_mask = {"mask_missed": missed, "mask_iou": float((mask & glass).sum() / union) if union else float("nan")}
+    rec = {**rec_mask, "sees_through_glass": sees_through, "see_through_share_of_glass": float(m[glass].mean()) if glass.any()
            else None, "target_normal_mae_deg": target_n, "target_depth_absrel": target_d,
            "depth_scale": float(a), "depth_shift": float(shift)}
     return {"depth": depth.astype(np.float32), "normal": normal.astype(np.float32),
-            "albedo": albedo.astype(np.float32)}, rec
+            "albedo": albedo.astype(np.float32), "glass": mask.astype(np.float32)}, rec
 
 
 def measure_priors(maps: dict, gt: dict, c2w, first_albedo=None) -> dict:
@@ -260,7 +274,7 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption=None, scene=None, a
     ds = load_dataset(scene_dir)
     scene = scene if scene is not None else glint_mi.load_file(scene_dir / "scene.xml")
     out = scene_dir / "priors"
-    kinds = KINDS if albedo else tuple(k for k in KINDS if k != "albedo")
+    kinds = tuple(k for k in KINDS if (albedo or k != "albedo") and (model == "realistic" or k != "glass"))
     for k in KINDS:
         if k not in kinds:
             import shutil
@@ -283,6 +297,7 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption=None, scene=None, a
             err = measure_priors(maps, gt, v.c2w, first if albedo else None)
             np.save(out / "depth" / f"{v.name}.npy", maps["depth"])
             np.save(out / "normal" / f"{v.name}.npy", maps["normal"])
+            np.save(out / "glass" / f"{v.name}.npy", maps["glass"])
             if albedo:
                 np.save(out / "albedo" / f"{v.name}.npy", maps["albedo"])
             record["views"][v.name] = {**rec, "measured": err}
@@ -311,5 +326,8 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption=None, scene=None, a
                                    "measured": err}
         errors.append(err)
     record["measured"] = {k: float(np.nanmean([e[k] for e in errors])) for k in errors[0]} if errors else {}
+    ious = [r["mask_iou"] for r in record["views"].values() if r.get("mask_iou") is not None]
+    if ious:
+        record["measured"]["glass_mask_iou"] = float(np.nanmean(ious))
     (out / "PRIORS.json").write_text(json.dumps(record, indent=1))
     return out
