@@ -346,6 +346,18 @@ class Trainer:
             self.report["components"]["reflection"] = {"kept": False, "iteration": 0, "why": why_r}
             self.dropped["reflection"] = why_r
             self.log(f"components auto: drop reflection: {why_r}")
+        if c.no_glass == "3dgs":  # GLINT contains 3DGS: the lone interface is a radiance field, trained as 3DGS
+            from .methods import METHODS
+
+            m = METHODS["3dgs"].overrides
+            profile = {k: m[k] for k in ("kernel", "w_l1", "w_dssim", "w_consistency")}
+            self.cfg = dataclasses.replace(c, **profile)
+            self.strategy.cfg = self.cfg
+            self.cfg.save(self.run_dir / "config.json")
+            self.report["no_glass"] = profile
+            said = ", ".join(f"{k}={v}" for k, v in profile.items())
+            self.log(f"no glass: the interface alone is trained as 3DGS ({said}; no_glass: glint keeps GLINT's "
+                     f"surfels and weights)")
 
     def _auto_components(self, st) -> None:
         """components: auto — keep transmission / reflection only where the evidence calls for them."""
