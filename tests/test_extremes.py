@@ -1,6 +1,5 @@
 """Numerical extremes (property-based): no NaN/Inf in images or gradients, and sensible limits."""
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 

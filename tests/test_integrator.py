@@ -13,7 +13,7 @@ import mitsuba as mi
 
 from conftest import camera, central_difference, make_integrator, random_set, rays, to_np
 from glint_mi import examples
-from glint_mi.gaussians import GaussianDataError, GaussianSet
+from glint_mi.gaussians import GaussianSet
 from glint_mi.render import render_buffers
 from glint_mi_plugins.glint_gaussians import make_shape
 
@@ -147,7 +147,6 @@ def test_planar_depth_of_a_plane(rng):
     scene = mi.load_dict({"type": "scene", "sensor": camera(24, 16),
                           "integrator": {"type": "glint", "alpha_max": 1 - 1e-6, "interface": make_shape(wall)}})
     b = render_buffers(scene)
-    cam_z = -4 * np.cos(np.arctan2(0.2, 4))  # camera looks at the origin from (0.2, 0.1, -4)
     good = b["alpha"][..., 0] > 0.999
     assert good.mean() > 0.5
     d = b["depth"][..., 0][good]

@@ -1,5 +1,4 @@
 """Every notebook runs headless at reduced size (GLINT_NB_SMALL=1) and raises nothing."""
-import os
 from pathlib import Path
 
 import nbformat

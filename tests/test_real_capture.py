@@ -3,7 +3,6 @@ priors written by monocular estimators, SfM from the known poses, evaluation tha
 instant-ngp fox (a real phone capture, ../shared/data/real_fox) end to end at tiny scale."""
 import json
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -286,7 +285,6 @@ def test_fox_real_capture_tiny(tmp_path):
     """The instant-ngp fox (phone JPEGs, OPENCV distortion, 17 missing frames, no points, no priors, no glass) at
     tiny scale: 12 frames at 1/8 size read, undistort, triangulate from the JPEGs, train and evaluate; components:
     auto keeps neither the transmission nor the reflection set."""
-    from glint_mi.scene import scene_xml
 
     meta = json.loads((FOX / "transforms.json").read_text())
     frames = [f for f in meta["frames"] if (FOX / f["file_path"]).exists()][::4][:12]
