@@ -177,6 +177,30 @@ class RayBank:
             z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), np.inf)
         return np.where(pr > 0, z, np.nan)
 
+    def fit_depth_to_renders(self, render_depth, max_rays: int = 2048) -> None:
+        """depth_align: image — the paper's per-image scale and shift of the depth prior (MonoSDF's closed form),
+        fitted over each whole training view: ``render_depth(flat, vid)`` gives the interface's depth and alpha on a
+        grid of <= ``max_rays`` pixels per view; least squares prior ~ w D + q (or w / D + q for a disparity prior)
+        where both are valid sets each view's (w, q), which the depth loss uses until the next refit."""
+        flats, vids = [], []
+        for i, (h, w) in enumerate(self.sizes):
+            step = max(1, int(np.ceil(np.sqrt(h * w / max_rays))))
+            ys, xs = np.mgrid[step // 2:h:step, step // 2:w:step]
+            flats.append(self.offsets[i] + ys.ravel() * w + xs.ravel())
+            vids.append(np.full(ys.size, i))
+        flat, vid = np.concatenate(flats), np.concatenate(vids)
+        D, A = render_depth(flat, vid)
+        P = self.priors["depth"][flat, 0].astype(np.float64)
+        x = np.where(D > 1e-6, 1.0 / np.maximum(D, 1e-6), 0.0) if self.depth_inverse else D
+        aff = np.full((len(self.views), 2), np.nan)
+        for i in range(len(self.views)):
+            m = (vid == i) & (P > 0) & (A > 0.5) & (D > 1e-6)
+            if m.sum() >= 8:
+                (w, q), *_ = np.linalg.lstsq(np.column_stack([x[m], np.ones(m.sum())]), P[m], rcond=None)
+                if w > 0:
+                    aff[i] = (w, q)
+        self.depth_affine = aff
+
     def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04) -> dict:
         """A 3D cue for L_trans that the transmission set cannot bend (glint_mi's; the paper has only the albedo
         prior): an SfM feature tracked in a view lies on the surface that view sees, or behind it if that surface

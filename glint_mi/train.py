@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from . import conventions as cv
+from . import components
 from . import losses as L
 from .batch import RayBank
 from .config import LOSS_NAMES, TrainConfig
@@ -87,7 +88,7 @@ class Trainer:
             self.log(f"SfM depth: {sd['pixels']} training pixels carry a tracked feature's depth"
                      + (f" ({sd['why']})" if "why" in sd else ""))
         if not resume:
-            self._glass_cue_check()
+            components.glass_cue_check(self)
         from .dataset.priors import priors_are_derived
 
         self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
@@ -202,6 +203,20 @@ class Trainer:
                            and on(max(c.trans_from, c.densify_until))),
                 "sh_degree": min(c.sh_degree, it // c.every(c.sh_every))}
 
+    def render_depth(self, flat: np.ndarray, vid: np.ndarray):
+        """The interface's planar depth and accumulated alpha at training pixels (``flat`` rows of the bank, their
+        view indices ``vid``), numpy, without gradient."""
+        import drjit as dr
+        import mitsuba as mi
+
+        bank = self.bank
+        ray = mi.Ray3f(mi.Point3f(*floats(bank.origins[vid])), mi.Vector3f(*floats(bank.dirs[flat])))
+        enabled, self.integ.enabled = self.integ.enabled, {"interface"}
+        out = self.integ.trace(ray, mi.Bool(True), forward=mi.Vector3f(*floats(bank.axes[vid, :, 2])))
+        self.integ.enabled = enabled
+        dr.eval(out["depth"], out["alpha"])
+        return np.array(out["depth"], np.float64), np.array(out["alpha"], np.float64)
+
     # --------------------------------------------------------- one step
     def step(self) -> dict:
         import drjit as dr
@@ -277,7 +292,7 @@ class Trainer:
     def _structure_now(self, st):
         c, it = self.cfg, self.it + 1
         if c.depth_align == "image" and "depth" in self.bank.has and it % c.every(c.depth_refit) == 0:
-            self._fit_depth_per_image()
+            self.bank.fit_depth_to_renders(self.render_depth)
         reset = c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0
         if self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from):
             for role in sorted(st["trained"] & set(self.sets)):
@@ -289,111 +304,7 @@ class Trainer:
             for role in sorted(st["trained"] & set(self.sets)):
                 fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
                 self.strategy.reset(it, role, self.sets[role], self.adam, fields)
-        self._auto_components(st)
-
-    def _fit_depth_per_image(self, max_rays: int = 2048) -> None:
-        """depth_align: image — the paper's per-image scale and shift of the depth prior (MonoSDF's closed form),
-        fitted over each whole training view: the interface's depth rendered on a grid of <= ``max_rays`` pixels
-        per view, least squares prior ~ w D + q (or w / D + q for a disparity prior) where both are valid; sets the
-        bank's per-view (w, q), which the depth loss then uses until the next refit."""
-        import drjit as dr
-        import mitsuba as mi
-
-        bank = self.bank
-        flats, vids = [], []
-        for i, (h, w) in enumerate(bank.sizes):
-            step = max(1, int(np.ceil(np.sqrt(h * w / max_rays))))
-            ys, xs = np.mgrid[step // 2:h:step, step // 2:w:step]
-            flats.append(bank.offsets[i] + ys.ravel() * w + xs.ravel())
-            vids.append(np.full(ys.size, i))
-        flat, vid = np.concatenate(flats), np.concatenate(vids)
-        ray = mi.Ray3f(mi.Point3f(*floats(bank.origins[vid])), mi.Vector3f(*floats(bank.dirs[flat])))
-        enabled, self.integ.enabled = self.integ.enabled, {"interface"}
-        out = self.integ.trace(ray, mi.Bool(True), forward=mi.Vector3f(*floats(bank.axes[vid, :, 2])))
-        self.integ.enabled = enabled
-        dr.eval(out["depth"], out["alpha"])
-        D, A = np.array(out["depth"], np.float64), np.array(out["alpha"])
-        P = bank.priors["depth"][flat, 0].astype(np.float64)
-        x = np.where(D > 1e-6, 1.0 / np.maximum(D, 1e-6), 0.0) if bank.depth_inverse else D
-        aff = np.full((len(bank.views), 2), np.nan)
-        for i in range(len(bank.views)):
-            m = (vid == i) & (P > 0) & (A > 0.5) & (D > 1e-6)
-            if m.sum() >= 8:
-                (w, q), *_ = np.linalg.lstsq(np.column_stack([x[m], np.ones(m.sum())]), P[m], rcond=None)
-                if w > 0:
-                    aff[i] = (w, q)
-        bank.depth_affine = aff
-
-    def _glass_cue_check(self) -> None:
-        """components: auto — the transmission set needs a glass cue to learn from: an albedo prior (the paper's
-        masks) or the SfM see-through cue against an aligned depth prior. Without either (no priors: a phone
-        capture) L_trans has only the paper's depth gap between two sets that fit the same surfaces, which turns
-        an opaque room into glass (the fox: 92 % of the wallpaper 'behind' when L_trans starts): the set is
-        dropped before training, with the reflection set (what glass would mirror), and the run says so."""
-        c = self.cfg
-        if c.components != "auto" or "transmission" not in self.sets or c.trans_cue == "none" \
-                or c.trans_masks in ("gt", "prior"):
-            return
-        if "albedo" in self.bank.has or self.bank.cue is not None:
-            return
-        why = ("no glass cue: no albedo prior and no depth prior aligned to SfM tracks, so L_trans could only "
-               "compare two sets that fit the same surfaces (trans_cue: none keeps the paper's depth-gap rule)")
-        self.report["components"]["transmission"] = {"kept": False, "iteration": 0, "why": why}
-        self.dropped["transmission"] = why
-        self.log(f"components auto: drop transmission: {why}")
-        if "reflection" in self.sets:  # what the glass would mirror: no glass, no reflection set (_auto_components)
-            why_r = "no glass (the transmission set is dropped): a diffuse surface's Fresnel floor is its colour's"
-            self.report["components"]["reflection"] = {"kept": False, "iteration": 0, "why": why_r}
-            self.dropped["reflection"] = why_r
-            self.log(f"components auto: drop reflection: {why_r}")
-        if c.no_glass == "3dgs":  # GLINT contains 3DGS: the lone interface is a radiance field, trained as 3DGS
-            from .methods import METHODS
-
-            m = METHODS["3dgs"].overrides
-            profile = {k: m[k] for k in ("kernel", "w_l1", "w_dssim", "w_consistency")}
-            self.cfg = dataclasses.replace(c, **profile)
-            self.strategy.cfg = self.cfg
-            self.cfg.save(self.run_dir / "config.json")
-            self.report["no_glass"] = profile
-            said = ", ".join(f"{k}={v}" for k, v in profile.items())
-            self.log(f"no glass: the interface alone is trained as 3DGS ({said}; no_glass: glint keeps GLINT's "
-                     f"surfels and weights)")
-
-    def _auto_components(self, st) -> None:
-        """components: auto — keep transmission / reflection only where the evidence calls for them."""
-        c = self.cfg
-        if c.components != "auto":
-            return
-        # decided once each set had time to learn: at the end of densification (the paper's 21k of 60k)
-        decide_at = {"transmission": c.at(max(c.densify_until, c.trans_from + 0.1)),
-                     "reflection": c.at(max(c.densify_until, c.reflection_from + 0.1))}
-        recent = self.history[-max(5, c.log_every * 5):]
-        for role, at in decide_at.items():
-            if role not in self.sets or role in self.report["components"] or self.it + 1 != at:
-                continue
-            share = np.mean([h.get(f"share_{role}", 0.0) for h in recent]) if recent else 0.0
-            if role == "transmission":
-                # the mask's coverage swings between batches and with opacity resets (0 - 9 % within 200
-                # iterations on the bundled room): average it over every batch since L_trans started
-                since = [h["mask_t"] for h in self.history if "mask_t" in h]
-                cover = float(np.mean(since)) if since else 0.0
-                keep = cover >= c.auto_trans_min and share >= c.auto_contrib_min
-                why = (f"L_trans transparent mask covers {100 * cover:.2f} % of sampled pixels "
-                       f"(threshold {100 * c.auto_trans_min:.2f} %), share of image energy {100 * share:.2f} %")
-            else:
-                # GLINT's reflection set is what the glass interface mirrors. Without glass (no transmission set
-                # kept) the 4 % Fresnel floor of a diffuse surface is not separable from its colour, and the set
-                # only adds view-dependent capacity under a wrong name (the fox: it lowered the batch L1 by 9.5 %,
-                # room b with glass by 2 %): dropped, so a room without glass renders its interface alone
-                glass = "transmission" in self.sets and "transmission" not in self.dropped
-                keep = share >= c.auto_contrib_min and glass
-                why = (f"share of image energy k_s c_R = {100 * share:.2f} % (threshold "
-                       f"{100 * c.auto_contrib_min:.2f} %); " + ("a transmission set is kept (glass)" if glass else
-                       "no glass (no transmission set): a diffuse surface's Fresnel floor is its colour's"))
-            self.report["components"][role] = {"kept": bool(keep), "iteration": self.it + 1, "why": why}
-            self.log(f"components auto: {'keep' if keep else 'drop'} {role}: {why}")
-            if not keep:
-                self.dropped[role] = why
+        components.decide(self, st)
 
     # ------------------------------------------------------------- loop
     def train(self, progress: bool = True, until: int | None = None) -> dict:

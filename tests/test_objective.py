@@ -117,3 +117,40 @@ def test_stage_schedule(variant):
     early = TrainConfig.for_preset("tiny", variant, iterations=600, normal_early="unmasked")
     fake.cfg = early
     assert stage(0)["normal"] and not stage(0)["normal_masked"] and stage(at(c.normal_from))["normal_masked"]
+
+
+@pytest.mark.parametrize("disparity", [False, True])
+def test_whole_image_depth_fit(tmp_path, disparity):
+    """depth_align: image — each view's (w, q) fitted over a grid of the whole view from rendered depths: a prior
+    that is exactly w D + q (or w / D + q for a disparity prior) gives back w and q."""
+    from PIL import Image
+
+    from glint_mi.batch import RayBank
+    from glint_mi.data import load_dataset
+    from glint_mi.dataset.cameras import Camera, write_transforms_json
+
+    folder = tmp_path / "cap"
+    (folder / "images").mkdir(parents=True)
+    (folder / "priors" / "depth").mkdir(parents=True)
+    cams = [Camera(f"v{i}", np.eye(4), 40, 30, 30.0, 30.0, 20.0, 15.0) for i in range(2)]
+    write_transforms_json(folder / "transforms.json", cams)
+    depth = {c.name: np.linspace(1.0, 3.0, 40 * 30).reshape(30, 40) * (1 + i) for i, c in enumerate(cams)}
+    wq = {"v0": (2.0, 0.5), "v1": (0.7, -0.1)}
+    for c in cams:
+        Image.fromarray(np.zeros((30, 40, 3), np.uint8)).save(folder / "images" / f"{c.name}.png")
+        x = 1.0 / depth[c.name] if disparity else depth[c.name]
+        np.save(folder / "priors" / "depth" / f"{c.name}.npy", (wq[c.name][0] * x + wq[c.name][1]).astype(np.float32))
+    if disparity:
+        (folder / "priors" / "PRIORS.json").write_text('{"depth": {"type": "disparity"}}')
+    ds = load_dataset(folder)
+    bank = RayBank(ds.views, folder)
+    flat_depth = np.concatenate([depth[v.name].ravel() for v in ds.views])
+    seen = []
+
+    def render(flat, vid):
+        seen.append(len(flat))
+        return flat_depth[flat], np.ones(len(flat))
+
+    bank.fit_depth_to_renders(render, max_rays=300)
+    assert seen[0] <= 2 * 300 + 40
+    np.testing.assert_allclose(bank.depth_affine, [wq["v0"], wq["v1"]], rtol=1e-3, atol=1e-3)
