@@ -297,9 +297,12 @@ def test_sfm_points_lie_on_surfaces(tmp_path):
 
 
 def test_derived_priors_have_the_documented_corruptions(scene_dir):
-    from glint_mi.dataset.priors import load_prior, priors_are_derived
+    import glint_mi
+    import mitsuba as mi
+    from glint_mi.dataset.priors import _behind_glass, _first_albedo, load_prior, priors_are_derived
     ds = load_dataset(scene_dir)
     assert priors_are_derived(scene_dir)
+    scene = glint_mi.load_file(scene_dir / "scene.xml")
     record = json.loads((scene_dir / "priors" / "PRIORS.json").read_text())
     for v in ds.views[:4]:
         gt = v.load_gt()
@@ -313,14 +316,27 @@ def test_derived_priors_have_the_documented_corruptions(scene_dir):
         assert np.isclose(s, record["views"][v.name]["depth_scale"], rtol=0.3)
         rel = np.abs(A @ [s, b] - d[opaque]) / np.abs(d[opaque])
         assert np.median(rel) < 0.05
-        if glass.sum() > 5:
-            assert np.median((d[glass] - b) / s - gt["depth"][glass]) > 0.05
-            assert a[glass].mean() < 0.08
+        rec = record["views"][v.name]
+        if glass.sum() > 5 and rec["sees_through_glass"] and rec["see_through_share_of_glass"] > 0.5:
+            excess = (d - b) / s - gt["depth"]
+            assert np.median(excess[glass]) > 0.05
+            # albedo: that of the surface the estimator sees - behind the glass where its depth sees through,
+            # the glass's own (near black) elsewhere on the pane
+            z_behind, _, alb_behind = _behind_glass(scene, mi.load_dict(v.sensor_dict()))
+            share = excess / np.maximum(z_behind - gt["depth"], 1e-6)  # how much of the behind surface it sees
+            through = glass & (share > 0.8)
+            on_glass = glass & (share < 0.2)
+            # the realistic model scales albedo by a per-image gain (0.8-1.2) and a smooth leak; blur mixes edges
+            ratio = a[through].mean() / alb_behind[through].mean()
+            assert through.sum() > 20 and 0.5 < ratio < 1.6, ratio
+            if on_glass.sum() > 5:
+                assert a[on_glass].mean() < 0.08  # the glass's own diffuse albedo is ~0
         # normals: camera space (OpenCV), close to the truth off glass
         from glint_mi.conventions import world_to_opencv_normals
         n_gt = world_to_opencv_normals(gt["normal"], v.c2w)
         ang = np.degrees(np.arccos(np.clip((n * n_gt).sum(-1), -1, 1)))[opaque]
-        assert np.median(ang) < 12
+        # calibrated per view to the drawn target (about 15 deg on average, like a monocular estimator)
+        assert abs(ang.mean() - rec["target_normal_mae_deg"]) < 1.5, (ang.mean(), rec["target_normal_mae_deg"])
         assert n_gt[opaque][:, 2].mean() < 0, "normals face the camera: negative z in OpenCV camera space"
 
 
