@@ -106,6 +106,24 @@ def test_a_missing_component_does_not_darken(rng, components, mode):
         np.testing.assert_allclose(got, c_i, atol=5e-5)
 
 
+def test_auto_gives_a_skipped_weight_to_the_diffuse_term(rng):
+    """components auto traces reflections only where k_s > reflect_min (0.05): at normal incidence with beta 0,
+    k_s = F0 = 0.04 is skipped and must go to the plane's own colour, C = (k_d + k_s) c_I + k_t c_T, not vanish."""
+    plane = GaussianSet.from_activated([[0.0, 0.0, 0.0]], [100.0, 100.0, 0.01], opacities=1.0, colors=[[0.5] * 3],
+                                       specular=0.0, transparency=0.6)
+    sets = {"interface": plane, "reflection": random_set(rng, 200, center=(0, 0, -6), spread=(3, 3, 0.5)),
+            "transmission": random_set(rng, 200, center=(0, 0, 2), spread=(1.5, 1.5, 0.3))}
+    integ = make_integrator(sets, components="auto", alpha_max=1 - 1e-7)
+    n = 32
+    o = np.column_stack([rng.uniform(-0.6, 0.6, (n, 2)), np.full(n, -4.0)])
+    got = to_np(integ.trace(rays(o, np.tile([0.0, 0.0, 1.0], (n, 1))), mi.Bool(True))["rgb"]).T
+    ks = 0.04
+    kd, kt = (1 - ks) * 0.4, (1 - ks) * 0.6
+    c_t = np.array([brute_force(sets["transmission"], "surfel", x, np.array([0.0, 0, 1]),
+                                _extent(integ, "transmission"))[0] for x in o * [1, 1, 0]])
+    np.testing.assert_allclose(got, (kd + ks) * 0.5 + kt * c_t, atol=2e-3)
+
+
 def _extent(integ, role):
     return float(mi.traverse(integ.sets[role].shape)["extent"])
 
