@@ -95,11 +95,11 @@ class RayBank:
             self.glass = np.concatenate([m.reshape(-1) for m in maps]).astype(np.float32)
 
     def align_depth_priors(self, points: np.ndarray | None, min_points: int = 12, trials: int = 256,
-                           seed: int = 0) -> dict:
+                           seed: int = 0, rel: float = 0.05) -> dict:
         """Fit, once per view, the affine map prior ~ w * z + q from the metric SfM points the view sees (z their
-        planar depth, the prior read at their pixel): RANSAC on pairs (inlier band 5 % of the median prior), then
-        least squares on the inliers. Points hidden behind a surface, or seen through glass where the prior sees the
-        glass, are outliers. Views with fewer than ``min_points`` points or no fit with w > 0 keep the per-batch fit
+        planar depth, the prior read at their pixel): RANSAC on pairs (inliers: the aligned prior within ``rel`` of
+        the point's depth, or of its inverse for a disparity prior), then least squares on the inliers. Points
+        hidden behind a surface, or seen through glass where the prior sees the glass, are outliers. Views with fewer than ``min_points`` points or no fit with w > 0 keep the per-batch fit
         (NaN here). Sets ``self.depth_affine`` [V,2]; returns a summary for the run report."""
         V = len(self.views)
         self.depth_affine = np.full((V, 2), np.nan)
@@ -126,7 +126,6 @@ class RayBank:
             counts.append(len(zz))
             if len(zz) < min_points:
                 continue
-            band = 0.05 * np.median(np.abs(pp))
             best = None
             for _ in range(trials):
                 a, b = rng.choice(len(zz), 2, replace=False)
@@ -135,7 +134,9 @@ class RayBank:
                 w = (pp[a] - pp[b]) / (zz[a] - zz[b])
                 if not w > 0:
                     continue
-                inl = np.abs(w * zz + (pp[a] - w * zz[a]) - pp) < band
+                # inliers judged in metric depth (relative): a prior-space band lets a near-flat fit (w ~ 0) win on
+                # a view of little depth range, whose depths (p - q) / w then blow up
+                inl = np.abs((pp - (pp[a] - w * zz[a])) / w - zz) < rel * zz
                 if best is None or inl.sum() > best.sum():
                     best = inl
             if best is None or best.sum() < max(min_points // 2, 3):
