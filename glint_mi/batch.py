@@ -56,9 +56,10 @@ class Batch:
 
 
 class RayBank:
-    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: str | None = None):
+    def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: str = "depth_gap"):
         """Photos, priors and rays of ``views`` at their own resolution (a dataset loaded with ``downscale`` k
-        gives views whose images, priors and ground truth are block-averaged by k)."""
+        gives views whose images, priors and ground truth are block-averaged by k). ``glass_masks``: the config's
+        ``trans_masks``; ``gt`` or ``prior`` load TSGS's per-pixel glass masks into ``self.glass``."""
         self.views = views
         self.sizes = [(v.height, v.width) for v in views]
         self.offsets = np.cumsum([0] + [h * w for h, w in self.sizes])
@@ -78,20 +79,16 @@ class RayBank:
         self.cue = None  # see see_through_cue
         self.sfm_depth = None  # see set_sfm_depth
         self.glass = None
-        if glass_masks == "gt":  # ground truth (labelled so wherever it is used)
-            gts = [v.load_gt() for v in views]
-            if any(g is None for g in gts):
-                from .data import DatasetError
+        if glass_masks in ("gt", "prior"):  # TSGS's masks: ground truth (labelled) or a segmentation model's
+            from .data import DatasetError
 
-                raise DatasetError(f"{root}: trans_masks = gt needs gt/<view>.exr for every training view.")
-            self.glass = np.concatenate([g["glass"].reshape(-1) for g in gts]).astype(np.float32)
-        elif glass_masks == "prior":  # a segmentation model's masks (priors/glass/)
-            maps = [load_prior(root, v, "glass") for v in views]
+            read = (lambda v: (v.load_gt() or {}).get("glass")) if glass_masks == "gt" else \
+                (lambda v: load_prior(root, v, "glass"))
+            maps = [read(v) for v in views]
             if any(m is None for m in maps):
-                from .data import DatasetError
-
-                raise DatasetError(f"{root}: trans_masks = prior needs priors/glass/<view>.(npy|png|exr) for every "
-                                   f"training view (a segmentation model's glass masks).")
+                need = "gt/<view>.exr" if glass_masks == "gt" else \
+                    "priors/glass/<view>.(npy|png|exr) (a segmentation model's glass masks)"
+                raise DatasetError(f"{root}: trans_masks = {glass_masks} needs {need} for every training view.")
             self.glass = np.concatenate([m.reshape(-1) for m in maps]).astype(np.float32)
 
     def align_depth_priors(self, points: np.ndarray | None, min_points: int = 12, trials: int = 256,
@@ -99,8 +96,9 @@ class RayBank:
         """Fit, once per view, the affine map prior ~ w * z + q from the metric SfM points the view sees (z their
         planar depth, the prior read at their pixel): RANSAC on pairs (inliers: the aligned prior within ``rel`` of
         the point's depth, or of its inverse for a disparity prior), then least squares on the inliers. Points
-        hidden behind a surface, or seen through glass where the prior sees the glass, are outliers. Views with fewer than ``min_points`` points or no fit with w > 0 keep the per-batch fit
-        (NaN here). Sets ``self.depth_affine`` [V,2]; returns a summary for the run report."""
+        hidden behind a surface, or seen through glass where the prior sees the glass, are outliers. Views with
+        fewer than ``min_points`` points or no fit with w > 0 keep the per-batch fit (NaN here). Sets
+        ``self.depth_affine`` [V,2]; returns a summary for the run report."""
         V = len(self.views)
         self.depth_affine = np.full((V, 2), np.nan)
         prior = self.priors.get("depth")

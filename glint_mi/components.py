@@ -43,6 +43,7 @@ def glass_cue_check(self) -> None:  # self: the Trainer
         self.log(f"no glass: the interface alone is trained as 3DGS ({said}; no_glass: glint keeps GLINT's "
                  f"surfels and weights)")
 
+
 def decide(self, st) -> None:  # self: the Trainer
     """At the end of densification: keep transmission / reflection only where the evidence calls for them."""
     c = self.cfg

@@ -62,7 +62,7 @@ class Trainer:
             self._fresh()
         cfg = self.cfg
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
-                            glass_masks=cfg.trans_masks if cfg.trans_masks in ("gt", "prior") else None)
+                            glass_masks=cfg.trans_masks)
         self.report["priors"] = sorted(self.bank.has)
         if not self.bank.has and "transmission" in self.sets:
             self.log(f"no priors ({self.ds.root}/priors holds no depth, normal or albedo maps"

@@ -81,8 +81,8 @@ def _read_exr(p: Path, kind: str) -> np.ndarray:
 
     with OpenEXR.File(str(p), separate_channels=True) as f:
         ch = {k: np.array(v.pixels) for k, v in f.channels().items()}
-    names = {"depth": (("Z",), ("Y",), ("R",)), "glass": (("T",), ("Y",), ("R",)), "normal": (("N.X", "N.Y", "N.Z"), ("X", "Y", "Z"), ("R", "G", "B")),
-             "albedo": (("R", "G", "B"),)}[kind]
+    names = {"depth": (("Z",), ("Y",), ("R",)), "glass": (("T",), ("Y",), ("R",)),
+             "normal": (("N.X", "N.Y", "N.Z"), ("X", "Y", "Z"), ("R", "G", "B")), "albedo": (("R", "G", "B"),)}[kind]
     found = next((n for n in names if all(c in ch for c in n)), None)
     if found is None:
         raise PriorError(f"{p}: channels {sorted(ch)}; a {kind} prior needs one of {list(names)}.")

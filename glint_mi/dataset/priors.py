@@ -213,8 +213,8 @@ def realistic_view(rng, c: Realistic, gt: dict, behind: dict, first_albedo, c2w)
         mask |= (blob > np.quantile(blob, 0.97)) & valid & ~glass
     union = (mask | glass).sum()
     rec_mask = {"mask_missed": missed, "mask_iou": float((mask & glass).sum() / union) if union else float("nan")}
-    rec = {**rec_mask, "sees_through_glass": sees_through, "see_through_share_of_glass": float(m[glass].mean()) if glass.any()
-           else None, "target_normal_mae_deg": target_n, "target_depth_absrel": target_d,
+    rec = {**rec_mask, "sees_through_glass": sees_through,
+           "see_through_share_of_glass": float(m[glass].mean()) if glass.any() else None, "target_normal_mae_deg": target_n, "target_depth_absrel": target_d,
            "depth_scale": float(a), "depth_shift": float(shift)}
     return {"depth": depth.astype(np.float32), "normal": normal.astype(np.float32),
             "albedo": albedo.astype(np.float32), "glass": mask.astype(np.float32)}, rec
