@@ -599,3 +599,33 @@ def test_t_raise_follows_the_opaque_mask(room, tmp_path, monkeypatch, mode):
         assert seen["t_raise"] is None
     else:
         np.testing.assert_array_equal(seen["t_raise"], seen["allowed"])
+
+
+def test_tsgs_glass_masks_from_a_segmenter_or_ground_truth(room, tmp_path):
+    """TSGS's masks (trans_masks): ``prior`` reads priors/glass/<view> (a segmentation model's, any view order
+    kept), ``gt`` the ground-truth glass; a view without its mask is refused naming the folder, before training."""
+    import shutil
+
+    from glint_mi.batch import RayBank
+    from glint_mi.methods import config_for
+    ds_root = tmp_path / "room"
+    shutil.copytree(room, ds_root)
+    (tmp_path / "scene.xml").write_text(scene_xml(ds_root))
+    views = load_dataset(ds_root).train_views
+    (ds_root / "priors" / "glass").mkdir()
+    masks = []
+    for i, v in enumerate(views):  # a different mask per view: a stripe whose column is the view's index
+        m = np.zeros((v.height, v.width), np.float32)
+        m[:, i] = 1.0
+        np.save(ds_root / "priors" / "glass" / f"{v.name}.npy", m)
+        masks.append(m)
+    bank = RayBank(views, ds_root, glass_masks="prior")
+    np.testing.assert_array_equal(bank.glass, np.concatenate([m.ravel() for m in masks]))
+    gt = RayBank(views, ds_root, glass_masks="gt")
+    np.testing.assert_array_equal(gt.glass, np.concatenate([v.load_gt()["glass"].ravel() for v in views]))
+    assert RayBank(views, ds_root).glass is None  # GLINT's own L_trans needs no masks
+    (ds_root / "priors" / "glass" / f"{views[2].name}.npy").unlink()
+    cfg = config_for("tsgs", "tiny", iterations=3)
+    assert cfg.trans_masks == "prior"
+    with pytest.raises(DatasetError, match="priors/glass"):
+        Trainer(tmp_path / "run", cfg, scene=read_scene(tmp_path / "scene.xml"), log=lambda *a: None)
