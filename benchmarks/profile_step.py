@@ -11,6 +11,7 @@ a step spent in BVH traversal (forward + the replay, which re-traces every pass)
     .venv/bin/python benchmarks/profile_step.py                        # the bundled demo room, fresh init
     .venv/bin/python benchmarks/profile_step.py --run out/demo/run     # a trained run: its config and Gaussians
     .venv/bin/python benchmarks/profile_step.py --scene SCENE.xml [--at 0.3] [--steps 30]
+    .venv/bin/python benchmarks/profile_step.py --run RUN --ab          # + the exact speed-ups off vs on, side by side
 
 Syncing between phases removes the overlap of Python with running kernels, so the phases add up to a little more
 than an unprofiled step; the table prints both. Results: benchmarks/results/profile_step_<name>.{md,json}.
@@ -86,6 +87,31 @@ def steps(tr: Trainer, n: int, profiler: Profiler | None):
     return times
 
 
+# Exact speed-ups that have no config switch, each as (name, what turns it off, what turns it back on): --ab times
+# steps with all of them off and on, in alternating blocks of the same run (the model keeps training through both).
+def _rebuild_every(n):
+    from glint_mi_plugins.glint_composite import GaussianSetRef
+    GaussianSetRef.REBUILD_EVERY = n
+
+
+SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda: _rebuild_every(0),
+             lambda: _rebuild_every(100))]
+
+
+def ab(tr: Trainer, steps_per_block: int, blocks: int = 4) -> dict:
+    """Median step seconds with the SPEEDUPS off ('before') and on ('after'), in alternating blocks, each from the
+    same iteration of the schedule (the stage of the profile above; the model keeps training)."""
+    times = {"before": [], "after": []}
+    it0 = tr.it
+    for _ in range(blocks):
+        for variant in ("before", "after"):
+            tr.it = it0
+            for name, off, on in SPEEDUPS:
+                (off if variant == "before" else on)()
+            times[variant] += steps(tr, steps_per_block, None)[1:]  # the first step of a block pays the switch
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
 def timed(fn, reps: int = 3) -> float:
     """Median seconds of fn() (after one call that compiles)."""
     fn()
@@ -142,7 +168,7 @@ def traversal(tr: Trainer) -> list[dict]:
     return rows
 
 
-def markdown(name, tr, plain, prof, n, trav) -> str:
+def markdown(name, tr, plain, prof, n, trav, before_after=None) -> str:
     rays = tr.cfg.patches * tr.cfg.patch ** 2
     step = statistics.median(plain)
     prof_total = sum(r["wall"] for r in prof.rows.values()) / n
@@ -175,6 +201,13 @@ def markdown(name, tr, plain, prof, n, trav) -> str:
     lines += ["", f"BVH traversal: {1e3 * walk:.0f} ms in the forward ({100 * walk / max(fwd, 1e-9):.0f} % of it); "
               f"{how}: {1e3 * passes * walk:.0f} ms = **{100 * passes * walk / prof_total:.0f} % of the step**. "
               f"(Traversal-only timings run on their own and can exceed the pass as run by the timing noise.)", ""]
+    if before_after:
+        b, a = before_after["before"], before_after["after"]
+        lines += ["Exact speed-ups without a config switch, off (before) and on (after), alternating blocks of steps in "
+                  "this run: " + "; ".join(n for n, _, _ in SPEEDUPS) + ".", "",
+                  "| | step ms | rays/s | x |", "|---|---|---|---|",
+                  f"| before | {1e3 * b:.1f} | {rays / b:.0f} | 1.00 |",
+                  f"| after | {1e3 * a:.1f} | {rays / a:.0f} | {b / a:.2f} |", ""]
     return "\n".join(lines)
 
 
@@ -189,6 +222,8 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=20, help="steps timed unprofiled, and again profiled")
     ap.add_argument("--name", help="results name (default: the scene's or run's folder)")
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="TrainConfig override")
+    ap.add_argument("--ab", action="store_true", help="also time the exact speed-ups without a config switch off and "
+                    "on, in alternating blocks of --steps steps")
     args = ap.parse_args(argv)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     quiet = lambda *a, **k: None
@@ -208,11 +243,15 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     steps(tr, args.warm, None)
     print(f"{name}: {args.warm} warm-up steps (compiles) in {time.perf_counter() - t0:.1f} s", flush=True)
+    it0 = tr.it
     plain = steps(tr, args.steps, None)
+    tr.it = it0
     prof = Profiler()
     steps(tr, args.steps, prof)
     trav = traversal(tr)
-    text = markdown(name, tr, plain, prof, args.steps, trav)
+    tr.it = it0
+    before_after = ab(tr, args.steps) if args.ab else None
+    text = markdown(name, tr, plain, prof, args.steps, trav, before_after)
     print(text)
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -220,6 +259,7 @@ def main(argv=None) -> int:
     (out / f"profile_step_{name}.json").write_text(json.dumps(
         {"name": name, "rays_per_step": tr.cfg.patches * tr.cfg.patch ** 2, "step_s": plain,
          "phases": {k: dict(v) for k, v in prof.rows.items()}, "steps": args.steps, "traversal": trav,
+         "before_after_step_s": before_after,
          "gaussians": {r: len(s) for r, s in tr.sets.items() if r not in tr.dropped}}, indent=1))
     return 0
 

@@ -14,6 +14,9 @@ from . import glint_gaussians
 class GaussianSetRef:
     """One set as the integrator sees it: its shape, kernel and the sub-scene holding its BVH."""
 
+    REBUILD_EVERY = 100  # refits of the native shells between full rebuilds (a refitted tree slowly loosens); 0: a
+    #                      static build after every change (as before refits; benchmarks/profile_step.py --ab)
+
     def __init__(self, role: str, shape):
         meta = glint_gaussians.info(shape)
         if meta.role is not None and meta.role != role:
@@ -39,12 +42,26 @@ class GaussianSetRef:
         data = np.array(params["data"], np.float64).reshape(-1, 10)
         reach = 2.0 * float(params["extent"]) * float(data[:, 3:6].max(initial=0.0)) if len(data) else 0.0
         self.reach = dr.opaque(mi.Float, reach * (1.0 + 1e-3) + 1e-6)
-        self._shells, self._data, self._extent = None, data, float(params["extent"])
+        self._data, self._extent = data, float(params["extent"])
+        self._shells_stale = True
 
     def native(self) -> "native.ShellSet":
-        """The set's shells in the native k-buffer traversal's Embree scene (built on first use after a change)."""
-        if self._shells is None:
-            self._shells = native.ShellSet(self._data, self._extent)
+        """The set's shells in the native k-buffer traversal's Embree scene, brought up to date on first use after a
+        change. A set's first build is static (a trained model being rendered); once it has changed it is taken for
+        a training set: rebuilt in Embree's refittable mode, then refitted while its size stays the same (exact: the
+        same lists), with a full rebuild every REBUILD_EVERY refits and whenever the size changes."""
+        shells = getattr(self, "_shells", None)
+        if shells is not None and not self._shells_stale:
+            return shells
+        if (shells is not None and shells.dynamic and len(shells) == len(self._data)
+                and shells.extent == self._extent and self._refits < self.REBUILD_EVERY):
+            shells.refit(self._data)
+            self._refits += 1
+        else:
+            self._shells = native.ShellSet(self._data, self._extent,
+                                           dynamic=shells is not None and self.REBUILD_EVERY > 0)
+            self._refits = 0
+        self._shells_stale = False
         return self._shells
 
 

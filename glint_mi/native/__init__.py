@@ -78,7 +78,8 @@ def load():
         _why = str(exc)
         return None
     vp, i, f = ctypes.c_void_p, ctypes.c_int, ctypes.c_float
-    lib.kb_build.restype, lib.kb_build.argtypes = vp, [vp, i, f]
+    lib.kb_build.restype, lib.kb_build.argtypes = vp, [vp, i, f, i]
+    lib.kb_refit.restype, lib.kb_refit.argtypes = i, [vp, vp, i, f]
     lib.kb_free.restype, lib.kb_free.argtypes = None, [vp]
     lib.kb_query.restype = None
     lib.kb_query.argtypes = [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
@@ -94,15 +95,35 @@ def why_not() -> str:
 
 class ShellSet:
     """One Gaussian set's shells in an Embree scene of the native library (``data`` [N, 10] as the ellipsoids shape
-    holds it: centre, shell scales / extent, x y z w quaternion)."""
+    holds it: centre, shell scales / extent, x y z w quaternion).
 
-    def __init__(self, data, extent: float):
+    ``dynamic``: a set that training moves every step. Its BVH is built in Embree's refittable mode, and
+    :meth:`refit` replaces the shells of the same N Gaussians in ~0.5 ms instead of a ~6 ms build (8.5k Gaussians);
+    queries return the same lists either way (the tree only decides how fast they are found)."""
+
+    def __init__(self, data, extent: float, dynamic: bool = False):
         import numpy as np
         self._lib = load()
         if self._lib is None:
             raise RuntimeError(f"glint_mi.native is unavailable: {_why}")
         self.data = np.ascontiguousarray(data, dtype=np.float32).reshape(-1, 10)
-        self.handle = self._lib.kb_build(self.data.ctypes.data, len(self.data), float(extent))
+        self.extent, self.dynamic = float(extent), bool(dynamic)
+        self.handle = self._lib.kb_build(self.data.ctypes.data, len(self.data), self.extent, int(self.dynamic))
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    def refit(self, data) -> None:
+        """New shells for the same Gaussians (a dynamic set, same count and extent): the BVH's boxes are refitted."""
+        import numpy as np
+        data = np.ascontiguousarray(data, dtype=np.float32).reshape(-1, 10)
+        if not self.dynamic or len(data) != len(self.data):
+            raise ValueError(f"glint_mi.native: refit needs a dynamic set of the same size ({len(self.data)} "
+                             f"Gaussians{'' if self.dynamic else ', built static'}; got {len(data)}): build a new "
+                             f"ShellSet")
+        if self._lib.kb_refit(self.handle, data.ctypes.data, len(data), self.extent) != 0:
+            raise RuntimeError("glint_mi.native: kb_refit refused the data")
+        self.data = data
 
     def query(self, o, d, t_prev, p_prev, active, k: int, threads: int):
         """Per ray, the k nearest shell entries after (t_prev, p_prev): (prims [n, k] uint32, t [n, k] float32,

@@ -30,6 +30,7 @@ struct Prim {
 
 struct Set {
     RTCScene scene;
+    RTCGeometry geom;
     std::vector<Prim> prims;
 };
 
@@ -108,9 +109,8 @@ RTCDevice device() {  // one per process (a device per set rebuilt after every t
 
 extern "C" {
 
-void *kb_build(const float *data, int n, float extent) {
-    Set *set = new Set();
-    set->scene = rtcNewScene(device());
+// The shells of n Gaussians into set->prims (their transforms and float32 boxes).
+static void fill(Set *set, const float *data, int n, float extent) {
     set->prims.resize(n);
     for (int i = 0; i < n; ++i) {
         const float *e = data + 10 * i;
@@ -134,21 +134,51 @@ void *kb_build(const float *data, int n, float extent) {
             q.hi[k] = (float) (e[k] + h);
         }
     }
+}
+
+// dynamic = 0: a BVH of medium quality, built once (rendering a trained model). dynamic = 1: a training set, whose
+// Gaussians move a little every step: a two-level BVH of low quality whose primitives can be refitted in place
+// (kb_refit, ~0.5 ms against ~6 ms for a build at 8.5k Gaussians; queries ~5 % slower).
+void *kb_build(const float *data, int n, float extent, int dynamic) {
+    Set *set = new Set();
+    set->scene = rtcNewScene(device());
+    fill(set, data, n, extent);
     RTCGeometry g = rtcNewGeometry(device(), RTC_GEOMETRY_TYPE_USER);
     rtcSetGeometryUserPrimitiveCount(g, n);
     rtcSetGeometryUserData(g, set);
     rtcSetGeometryBoundsFunction(g, bounds_fn, nullptr);
     rtcSetGeometryIntersectFunction(g, intersect_fn);
+    if (dynamic)
+        rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
     rtcCommitGeometry(g);
     rtcAttachGeometry(set->scene, g);
-    rtcReleaseGeometry(g);
-    rtcSetSceneBuildQuality(set->scene, RTC_BUILD_QUALITY_MEDIUM);
+    set->geom = g;
+    if (dynamic) {  // Embree reads a geometry's own quality only in the two-level (low quality) mode
+        rtcSetSceneFlags(set->scene, RTC_SCENE_FLAG_DYNAMIC);
+        rtcSetSceneBuildQuality(set->scene, RTC_BUILD_QUALITY_LOW);
+    } else {
+        rtcSetSceneBuildQuality(set->scene, RTC_BUILD_QUALITY_MEDIUM);
+    }
     rtcCommitScene(set->scene);
     return set;
 }
 
+// New shells for the same n Gaussians of a dynamic set: the primitives are replaced and the BVH's boxes refitted
+// (its tree kept). The lists a query returns do not depend on the tree, only how fast it finds them. Returns 0, or
+// -1 (nothing changed) when n is not the set's size.
+int kb_refit(void *h, const float *data, int n, float extent) {
+    Set *set = (Set *) h;
+    if ((size_t) n != set->prims.size())
+        return -1;
+    fill(set, data, n, extent);
+    rtcCommitGeometry(set->geom);
+    rtcCommitScene(set->scene);
+    return 0;
+}
+
 void kb_free(void *h) {
     Set *set = (Set *) h;
+    rtcReleaseGeometry(set->geom);
     rtcReleaseScene(set->scene);
     delete set;
 }
