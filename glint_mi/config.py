@@ -15,8 +15,8 @@ from . import conventions as cv
 
 PAPER_ITERS = 60_000.0
 # the weighted terms of the objective (glint_mi.losses.batch_objective), each switched by its w_<name> weight
-LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "sfm_depth", "normal", "consistency", "trans", "treg",
-              "plausibility")
+LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "sfm_depth", "normal", "consistency", "distortion", "trans",
+              "treg", "plausibility")
 
 
 class ConfigError(ValueError):
@@ -89,6 +89,10 @@ class TrainConfig:
     depth_refit: float = 0.02
     w_normal: float = 0.3
     w_consistency: float = 0.1
+    consistency_depth: str = "expected"  # the depth whose normals the consistency term compares: expected (GLINT) or
+    #                                      median (2DGS's depth_ratio 1: the distance where T falls to 0.5)
+    w_dist: float = 0.0                  # 2DGS's depth distortion, mean over rays of sum_{i<j} w_i w_j (m_i - m_j)^2
+    #                                      on NDC-mapped distances (near 0.2, far 100); GLINT has none
     w_trans: float = 0.01
     w_treg: float = 0.01
     w_plausibility: float = 0.05
@@ -129,6 +133,8 @@ class TrainConfig:
     reflection_from: float = 5 / 60      # release: 3k
     refine_from: float = 40 / 60         # interface frozen after this (supplement); 1.0 = never (release)
     normal_from: float = 10 / 60
+    consistency_from: float = 0.0        # depth-normal consistency from here (GLINT: the start; 2DGS: 7k of 30k)
+    dist_from: float = 0.1               # depth distortion from here (2DGS: 3k of 30k)
     trans_from: float = 5 / 60
     treg_from: float = 7 / 60
     plausibility_from: float = 5 / 60
@@ -230,6 +236,8 @@ class TrainConfig:
         need(self.depth_align in ("batch", "sfm", "image"), "depth_align", "use sfm, image or batch")
         need(self.normal_loss in ("cos", "l1_cos"), "normal_loss", "use cos (the paper) or l1_cos")
         need(self.normal_early in ("off", "unmasked"), "normal_early", "use off or unmasked (the paper)")
+        need(self.consistency_depth in ("expected", "median"), "consistency_depth",
+             "use expected (GLINT) or median (2DGS)")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
@@ -247,7 +255,7 @@ class TrainConfig:
             if f.name.startswith(("w_", "lr_")):
                 need(isinstance(v, (int, float)) and v >= 0, f.name, "must be a number >= 0")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "normal_from", "trans_from",
-                  "treg_from", "plausibility_from", "densify_from", "densify_until"):
+                  "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from"):
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
 
     def rays_per_iteration(self) -> int:

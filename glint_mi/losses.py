@@ -230,9 +230,15 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         A = dr.detach(out["alpha"])
         parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
         if st["consistency"]:
-            dist = depth / dr.dot(ray.d, fwd)
+            if c.consistency_depth == "median":  # 2DGS: normals of the median depth (where T falls to 0.5)
+                dist = leaves["median"] = _leaf(out["median"])
+            else:
+                dist = depth / dr.dot(ray.d, fwd)
             parts["consistency"] = c.w_consistency * depth_normal_consistency(
                 ray.o, ray.d, dist, normal, A > 0.5, nb)
+        if st.get("distortion"):  # 2DGS's depth distortion of the interface's hits, mean over the rays
+            leaves["distortion"] = _leaf(out["distortion"])
+            parts["distortion"] = c.w_dist * dr.mean(leaves["distortion"])
         out_depth = depth  # the interface's planar depth (the depth term below may work in 1 / depth)
         if st["depth"]:
             prior = floats(b.depth_prior)

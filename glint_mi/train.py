@@ -190,7 +190,8 @@ class Trainer:
                 "normal": c.w_normal > 0 and "normal" in self.bank.has and (on(c.normal_from)
                                                                            or c.normal_early == "unmasked"),
                 "normal_masked": on(c.normal_from),
-                "consistency": c.w_consistency > 0,
+                "consistency": c.w_consistency > 0 and on(c.consistency_from),
+                "distortion": c.w_dist > 0 and on(c.dist_from),
                 "direct": has_t and c.w_direct > 0,
                 "trans": (has_t or gt_masks) and c.w_trans > 0 and on(c.trans_from),
                 "treg": has_t and c.w_treg > 0 and on(c.treg_from),

@@ -65,26 +65,43 @@ class GaussianSetRef:
         return self._shells
 
 
+# 2DGS's depth distortion maps each hit's depth into [0, 1) as an NDC depth with these planes (its rasteriser's
+# near and far plane) before it weighs the spread of the hits along a ray
+DIST_NEAR, DIST_FAR = 0.2, 100.0
+
+
 class Composite:
-    """Accumulators of one alpha-compositing pass: sums over hits of w_i * (c, 1, t, n, beta, tau).
+    """Accumulators of one alpha-compositing pass: sums over hits of w_i * (c, 1, t, n, beta, tau, m, m^2), with
+    m the hit's NDC-mapped distance (2DGS's depth distortion: sum_{i<j} w_i w_j (m_i - m_j)^2 = A M2 - M^2), and
+    Med, the distance of the hit at which the transmittance falls to 0.5 (2DGS's median depth; 0 where it never
+    does). Med is a sum of delta_i t_i with delta_i from the detached transmittance: it depends on the hits' positions,
+    not on their alphas, so the replay does not scale it (:meth:`scaled`).
 
     A Dr.Jit struct, so it can be loop state; arithmetic is field-wise.
     """
 
-    DRJIT_STRUCT = {"C": mi.Color3f, "A": mi.Float, "Dt": mi.Float, "N": mi.Vector3f, "B": mi.Float, "Tau": mi.Float}
+    DRJIT_STRUCT = {"C": mi.Color3f, "A": mi.Float, "Dt": mi.Float, "N": mi.Vector3f, "B": mi.Float, "Tau": mi.Float,
+                    "M": mi.Float, "M2": mi.Float, "Med": mi.Float}
     FIELDS = tuple(DRJIT_STRUCT)
 
-    def __init__(self, C=None, A=None, Dt=None, N=None, B=None, Tau=None):
+    def __init__(self, C=None, A=None, Dt=None, N=None, B=None, Tau=None, M=None, M2=None, Med=None):
         self.C = mi.Color3f(0.0) if C is None else C
         self.A = mi.Float(0.0) if A is None else A
         self.Dt = mi.Float(0.0) if Dt is None else Dt
         self.N = mi.Vector3f(0.0) if N is None else N
         self.B = mi.Float(0.0) if B is None else B
         self.Tau = mi.Float(0.0) if Tau is None else Tau
+        self.M = mi.Float(0.0) if M is None else M
+        self.M2 = mi.Float(0.0) if M2 is None else M2
+        self.Med = mi.Float(0.0) if Med is None else Med
 
     @staticmethod
-    def of_hit(w, t, n, c, beta, tau):
-        return Composite(w * c, mi.Float(w), w * t, w * n, w * beta, w * tau)
+    def of_hit(w, t, n, c, beta, tau, median=None):
+        """One hit's terms: weight w = T alpha, distance t, ...; ``median`` (bool) marks the hit at which the
+        transmittance falls to 0.5."""
+        m = ndc_depth(t)
+        med = mi.Float(0.0) if median is None else dr.select(median, t, 0.0)
+        return Composite(w * c, mi.Float(w), w * t, w * n, w * beta, w * tau, w * m, w * m * m, med)
 
     def map(self, fn, other=None):
         if other is None:
@@ -98,7 +115,10 @@ class Composite:
         return self.map(lambda a, b: a - b, other)
 
     def scaled(self, s):
-        return self.map(lambda a: a * s)
+        """Every alpha-weighted sum times ``s`` (what lies behind a hit, as its alpha changes); Med is not one."""
+        out = self.map(lambda a: a * s)
+        out.Med = self.Med
+        return out
 
     def detached(self):
         return self.map(dr.detach)
@@ -116,16 +136,26 @@ class Composite:
     def dot(self, other):
         """sum over fields of <self.f, other.f> per ray (adjoint . value)."""
         return (dr.dot(self.C, other.C) + self.A * other.A + self.Dt * other.Dt + dr.dot(self.N, other.N)
-                + self.B * other.B + self.Tau * other.Tau)
+                + self.B * other.B + self.Tau * other.Tau + self.M * other.M + self.M2 * other.M2
+                + self.Med * other.Med)
 
     @property
     def depth(self):  # expected distance along the ray
         return dr.select(self.A > 0, self.Dt / dr.maximum(self.A, 1e-12), 0.0)
 
     @property
+    def distortion(self):  # 2DGS: sum_{i<j} w_i w_j (m_i - m_j)^2
+        return self.A * self.M2 - self.M * self.M
+
+    @property
     def normal(self):  # normalised, 0 where nothing was hit
         n = dr.norm(self.N)
         return dr.select(n > 1e-12, self.N / dr.maximum(n, 1e-12), mi.Vector3f(0.0))
+
+
+def ndc_depth(t):
+    """2DGS's mapping of a distance into [0, 1): far / (far - near) (1 - near / t), 0 in front of the near plane."""
+    return DIST_FAR / (DIST_FAR - DIST_NEAR) * (1.0 - DIST_NEAR / dr.maximum(t, DIST_NEAR))
 
 
 def _ray_epsilon(p):

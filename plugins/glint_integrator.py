@@ -392,6 +392,7 @@ class GlintIntegrator(GaussianPasses):
         return {"rgb": mi.Spectrum(rgb), "kd": kd, "ks": ks, "kt": kt, "distance": I.depth,
                 "depth": I.depth * z, "normal": I.normal, "transparency": I.Tau, "interface": I.C,
                 "reflection": R.C, "transmission": cT, "alpha": I.A, "weights": (kd, ks, kt),
+                "distortion": I.distortion, "median": I.Med,
                 "trans_direct": (D.C, D.depth * z, D.normal, D.A)}
 
     def trace(self, ray: mi.Ray3f, active, ad: bool = False, need=frozenset(), forward=None,

@@ -261,16 +261,17 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
         S = total - prefix (everything behind this hit, all of it scaled by 1 - alpha).
         Returns (new acc, alpha (detached in replay), origin adjoint, direction adjoint)."""
         zero = mi.Vector3f(0.0)
+        median = lambda a: fresh & (T > 0.5) & (T * (1.0 - dr.detach(a)) <= 0.5)  # where T falls to 0.5
         if adjoint is None:
             alpha, t, n, c, beta, tau = self._eval_kernel(gs, prim_index, o0, d, fresh)
-            return acc + Composite.of_hit(T * alpha, t, n, c, beta, tau), alpha, zero, zero
+            return acc + Composite.of_hit(T * alpha, t, n, c, beta, tau, median(alpha)), alpha, zero, zero
         with dr.resume_grad():
             o_l, d_l = mi.Point3f(dr.detach(o0)), mi.Vector3f(dr.detach(d))
             if ray_grad:
                 dr.enable_grad(o_l, d_l)
             alpha, t, n, c, beta, tau = self._eval_kernel(gs, prim_index, o_l, d_l, fresh)
             alpha_d = dr.detach(alpha)
-            mine = Composite.of_hit(T * alpha, t, n, c, beta, tau)
+            mine = Composite.of_hit(T * alpha, t, n, c, beta, tau, median(alpha_d))
             prefix = acc + mine.detached()
             suffix = (total - prefix).detached()
             Lo = mine + suffix.scaled((1.0 - alpha) / (1.0 - alpha_d))

@@ -188,7 +188,8 @@ def _grad_setup(rng, kernel):
         c, n = out["rgb"], out["normal"]
         cd, dd, nd, ad = out["trans_direct"]
         return dr.sum(W[0] * c.x + W[1] * c.y + W[2] * c.z + 0.1 * W[3] * out["depth"] + W[4] * n.x
-                      + W[5] * out["transparency"] + W[6] * cd.y + 0.1 * W[7] * dd)
+                      + W[5] * out["transparency"] + W[6] * cd.y + 0.1 * W[7] * dd
+                      + 20.0 * W[0] * out["distortion"] + 0.1 * W[1] * out["median"])  # 2DGS terms
     return integ, loss
 
 
@@ -244,7 +245,8 @@ def test_replay_backward_equals_plain_ad(rng, kernel, detach):
            "depth": mi.Float(rng.uniform(-1, 1, 64)), "normal": mi.Vector3f(*[mi.Float(rng.normal(size=64)) for _ in range(3)]),
            "transparency": mi.Float(rng.normal(size=64)), "alpha": mi.Float(rng.normal(size=64)),
            "interface": mi.Color3f(0.3, -0.2, 0.1), "reflection": mi.Color3f(0.2, 0.1, -0.3),
-           "trans_direct": (mi.Color3f(0.4, 0.2, 0.1), mi.Float(0.3), mi.Vector3f(0.1, 0.2, -0.1), mi.Float(-0.2))}
+           "trans_direct": (mi.Color3f(0.4, 0.2, 0.1), mi.Float(0.3), mi.Vector3f(0.1, 0.2, -0.1), mi.Float(-0.2)),
+           "distortion": mi.Float(rng.uniform(50, 150, 64)), "median": mi.Float(rng.normal(size=64))}
     from glint_mi_plugins.glint_integrator import _adjoint_dot
 
     def grads():
@@ -273,6 +275,50 @@ def test_replay_backward_equals_plain_ad(rng, kernel, detach):
         np.testing.assert_allclose(g_ls[k], g_rp[k], rtol=1e-5, atol=1e-6 * scale, err_msg=k)
         nonzero += np.abs(g_ad[k]).max() > 1e-4
     assert nonzero >= 15
+
+
+def test_distortion_and_median_depth_follow_2dgs(rng):
+    """2DGS's depth distortion and median depth from the interface pass, against float64 numpy on the same hits
+    (the stored hit list, each hit's alpha and distance from the kernel): the distortion as 2DGS's rasteriser sums
+    it, hit by hit, sum_i w_i (m_i^2 A_{i-1} + M2_{i-1} - 2 m_i M1_{i-1}) with m the NDC-mapped distance (near 0.2,
+    far 100), and the median as the distance of the last hit composited while T > 0.5 (where T falls below 0.5)."""
+    near, far = 0.2, 100.0  # 2DGS's rasteriser planes
+    n = 40
+    surfels = GaussianSet.from_activated(np.c_[rng.uniform(-0.3, 0.3, (n, 2)), rng.uniform(0.5, 4.0, n)],
+                                         np.c_[rng.uniform(0.3, 0.6, (n, 2)), np.full(n, 0.01)],
+                                         opacities=rng.uniform(0.05, 0.3, n), colors=rng.uniform(0, 1, (n, 3)))
+    integ = make_integrator({"interface": surfels}, components="all", max_hits=64)
+    m = 48  # rays through the stack's core (T falls below 0.5) and its fringe (it does not)
+    r = rays(np.c_[rng.uniform(-1.0, 1.0, (m, 2)), np.full(m, -1.0)], np.c_[rng.normal(0, 0.05, (m, 2)), np.ones(m)])
+    with dr.suspend_grad():
+        out = integ.trace(r, mi.Bool(True), forward=mi.Vector3f(0, 0, 1), record=True)
+        listed, count = out["_lists"][0]
+        listed, count = np.array(listed).reshape(m, -1), np.array(count)
+        gs = integ.active_set("interface")
+        ref_d, ref_med = np.zeros(m), np.zeros(m)
+        for k in range(m):
+            prims = listed[k, :count[k]]
+            o = mi.Point3f(*[float(x) for x in np.array(r.o)[:, k]])
+            d = mi.Vector3f(*[float(x) for x in np.array(r.d)[:, k]])
+            alpha, t, *_ = integ._eval_kernel(gs, mi.UInt32(prims), o, d, mi.Bool(True))
+            alpha, t = np.array(alpha, np.float64), np.array(t, np.float64)
+            T = A = M1 = M2 = dist = 0.0
+            T = 1.0
+            for a, ti in zip(alpha, t):
+                if a == 0:
+                    continue
+                w = T * a
+                mm = far / (far - near) * (1 - near / max(ti, near))
+                dist += w * (mm * mm * A + M2 - 2 * mm * M1)
+                A, M1, M2 = A + w, M1 + w * mm, M2 + w * mm * mm
+                if T > 0.5 and T * (1 - a) <= 0.5:
+                    ref_med[k] = ti
+                T *= 1 - a
+            ref_d[k] = dist
+    got_d, got_med = np.array(out["distortion"]), np.array(out["median"])
+    assert (ref_med > 0).sum() >= 10 and (ref_med == 0).sum() >= 3 and ref_d.max() > 1e-4  # both cases occur
+    np.testing.assert_allclose(got_d, ref_d, rtol=2e-3, atol=1e-7)
+    np.testing.assert_allclose(got_med, ref_med, rtol=1e-5, atol=1e-6)
 
 
 def test_mi_render_backward_reaches_aovs(rng):

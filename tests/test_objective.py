@@ -120,6 +120,54 @@ def test_stage_schedule(variant):
     assert stage(0)["normal"] and not stage(0)["normal_masked"] and stage(at(c.normal_from))["normal_masked"]
 
 
+def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
+    """2DGS as its release trains it: depth distortion (lambda 10) from 3k of 30k iterations, normal consistency
+    (0.05) on the median depth from 7k; GLINT has neither the distortion nor the delay. One training step of the
+    bundled room past both starts: the distortion term is on and positive, and the consistency term reads the
+    median depth (a changed median changes it, a changed expected depth does not)."""
+    from types import SimpleNamespace
+
+    import drjit as dr
+    import mitsuba as mi
+
+    from glint_mi import losses as L
+    from glint_mi.methods import config_for
+    from glint_mi.train import Trainer
+
+    c = config_for("2dgs", "tiny", iterations=300)
+    assert (c.w_dist, c.dist_from, c.w_consistency, c.consistency_from, c.consistency_depth) == \
+        (10.0, 0.1, 0.05, 7 / 30, "median")
+    g = config_for("glint", "tiny", iterations=300)
+    assert g.w_dist == 0 and g.consistency_from == 0 and g.consistency_depth == "expected"
+    fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0}, dropped={},
+                           bank=SimpleNamespace(has=set(), sfm_depth=None))
+    stage = lambda it: Trainer.stage(fake, it)
+    assert not stage(c.at(0.1) - 1)["distortion"] and stage(c.at(0.1))["distortion"]
+    assert not stage(c.at(7 / 30) - 1)["consistency"] and stage(c.at(7 / 30))["consistency"]
+
+    from glint_mi.scene import read_scene
+    from pathlib import Path
+    spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
+    tr = Trainer(tmp_path / "run", c, scene=spec, log=lambda *a, **k: None)
+    tr.it = c.at(0.5)
+    terms = tr.step()
+    assert terms["distortion"] > 0 and terms["consistency"] > 0
+    # the consistency term's depth: shift the median, then the expected depth, of the same traced batch
+    st = tr.stage()
+    tr.integ.enabled = set(st["traced"])
+    b = tr.bank.sample(np.random.default_rng(0), c.patches, c.patch)
+    ray = mi.Ray3f(mi.Point3f(*[mi.Float(b.origin[:, k]) for k in range(3)]),
+                   mi.Vector3f(*[mi.Float(b.direction[:, k]) for k in range(3)]))
+    fwd = mi.Vector3f(*[mi.Float(b.axes[:, k, 2]) for k in range(3)])
+    out = tr.integ.trace(ray, mi.Bool(True), forward=fwd)
+    rng = np.random.default_rng(1)
+    value = lambda o: L.batch_objective(c, b, o, st, ray, fwd, len(tr.bank.views), tr.extent)[0]["consistency"]
+    base = value(out)
+    bumped = lambda k: {**out, k: out[k] * mi.Float(1 + 0.05 * rng.standard_normal(dr.width(out[k])))}
+    assert abs(value(bumped("median")) - base) > 1e-4 * max(base, 1e-3)
+    assert value(bumped("depth")) == pytest.approx(base, rel=1e-6)
+
+
 @pytest.mark.parametrize("disparity", [False, True])
 def test_whole_image_depth_fit(tmp_path, disparity):
     """depth_align: image — each view's (w, q) fitted over a grid of the whole view from rendered depths: a prior
