@@ -112,7 +112,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
     (run / "method.json").write_text(json.dumps({"method": method, "overrides": METHODS[method].overrides,
                                                  "differs": METHODS[method].differs}, indent=1))
     res = trainer.train(progress=False)
-    out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"])
+    out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"], **trainer.eval_options())
     return {k: v for k, v in out.items() if k not in ("per_view", "renders")}
 
 

@@ -38,6 +38,8 @@ class TrainConfig:
     downscale: int = 1                   # read the dataset at 1/k of its resolution (area filter, or a capture's
     #                                      images_<k>/): photos, priors, training and evaluation alike
     eval_full: bool = False              # evaluate at the dataset's full resolution instead of the training one
+    eval_depth: str = "expected"         # the depth a method reports (glint_mi.depth_rules): expected (GLINT, 3DGS),
+    #                                      median (2DGS, depth_ratio 1) or first_surface (TSGS, with priors/glass)
     # model
     kernel: str = "surfel"
     sh_degree: int = 1                   # highest SH degree; raised one band every sh_every of the run
@@ -236,6 +238,8 @@ class TrainConfig:
         need(self.depth_align in ("batch", "sfm", "image"), "depth_align", "use sfm, image or batch")
         need(self.normal_loss in ("cos", "l1_cos"), "normal_loss", "use cos (the paper) or l1_cos")
         need(self.normal_early in ("off", "unmasked"), "normal_early", "use off or unmasked (the paper)")
+        need(self.eval_depth in ("expected", "median", "first_surface"), "eval_depth",
+             "use expected, median (2DGS) or first_surface (TSGS; needs priors/glass masks)")
         need(self.consistency_depth in ("expected", "median"), "consistency_depth",
              "use expected (GLINT) or median (2DGS)")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")

@@ -27,10 +27,15 @@ from .runs import atomic_write_text
 CHUNK = 1 << 16
 
 
-def render_view(integ, view: View, need_direct: bool = False) -> dict[str, np.ndarray]:
-    """Every buffer of one view as [H, W, C] numpy (rays through pixel centres, chunks of 65k rays)."""
+def render_view(integ, view: View, need_direct: bool = False, depth_rule: str = "expected",
+                glass: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Every buffer of one view as [H, W, C] numpy (rays through pixel centres, chunks of 65k rays). ``depth``
+    follows ``depth_rule`` (:mod:`glint_mi.depth_rules`: expected, median, or first_surface with the view's
+    transparency mask ``glass`` [H, W])."""
     import drjit as dr
     import mitsuba as mi
+
+    from . import depth_rules
 
     d = pixel_rays(view).astype(np.float32)
     o = view.c2w[:3, 3].astype(np.float32)
@@ -40,8 +45,19 @@ def render_view(integ, view: View, need_direct: bool = False) -> dict[str, np.nd
     for s in range(0, len(d), CHUNK):
         dd = d[s:s + CHUNK]
         ray = mi.Ray3f(mi.Point3f(*floats(np.broadcast_to(o, dd.shape))), mi.Vector3f(*floats(dd)))
-        out = integ.trace(ray, mi.Bool(True), need={"trans_direct"} if need_direct else set(), forward=fwd)
-        vals = {"rgb": out["rgb"], "depth": out["depth"], "normal": out["normal"], "transparency": out["transparency"],
+        lists = depth_rule != "expected"
+        out = integ.trace(ray, mi.Bool(True), need={"trans_direct"} if need_direct else set(), forward=fwd,
+                          record=lists)
+        depth = out["depth"]
+        if lists:  # the depth rule reads the interface pass's composited Gaussians
+            alpha, z, _ = depth_rules.interface_hits(integ, ray, fwd, out["_lists"][0])
+            expected = np.array(depth, np.float64)
+            if depth_rule == "median":
+                depth = mi.Float(depth_rules.median_depth(alpha, z, expected).astype(np.float32))
+            else:
+                mask = np.zeros(len(dd)) if glass is None else glass.reshape(-1)[s:s + CHUNK]
+                depth = mi.Float(depth_rules.first_surface_depth(alpha, z, mask, **depth_rules.TSGS).astype(np.float32))
+        vals = {"rgb": out["rgb"], "depth": depth, "normal": out["normal"], "transparency": out["transparency"],
                 "interface": out["interface"], "reflection": out["reflection"], "transmission": out["transmission"],
                 "alpha": out["alpha"]}
         if need_direct:
@@ -111,8 +127,10 @@ def machine() -> str:
 
 
 def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: float | None = None,
-             write: bool = True, progress: bool = False) -> dict:
-    """Metrics of ``integ`` (a glint integrator holding trained sets) on ``views``, at the views' resolution.
+             write: bool = True, progress: bool = False, depth_rule: str = "expected", glass_of=None) -> dict:
+    """Metrics of ``integ`` (a glint integrator holding trained sets) on ``views``, at the views' resolution; the
+    depth each method reports by ``depth_rule`` (``glass_of(view)``: the view's transparency mask, for TSGS's
+    first_surface rule).
 
     With ``write``, each view's renders and ``per_view/<view>.json`` are written as soon as it is done, and
     ``metrics.json`` after every view (``"views_done"`` says how many), so a Ctrl-C keeps what is finished: the
@@ -137,11 +155,12 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
     try:
         for v in bar:
             t0 = time.perf_counter()
-            b = render_view(integ, v)
+            mask = glass_of(v) if glass_of is not None else None
+            b = render_view(integ, v, depth_rule=depth_rule, glass=mask)
             seconds.append(time.perf_counter() - t0)
             if len(views) == 1:  # the first render compiled the kernels: time a second one
                 t0 = time.perf_counter()
-                b = render_view(integ, v)
+                b = render_view(integ, v, depth_rule=depth_rule, glass=mask)
                 seconds.append(time.perf_counter() - t0)
             per_view[v.name] = M.view_metrics(b, v.load_gt(), v.load_image())
             renders[v.name] = b
@@ -207,10 +226,15 @@ def main(argv=None) -> int:
     except (RunError, DatasetError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    from .train import eval_options
     try:
-        res = evaluate(integ, ds.test_views, args.run, train_s, progress=not args.no_progress)
+        res = evaluate(integ, ds.test_views, args.run, train_s, progress=not args.no_progress,
+                       **eval_options(cfg, ds.root))
     except KeyboardInterrupt:
         return 130
+    except DatasetError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     print(M.table({args.run.name: res["metrics"]}))
     return 0
 

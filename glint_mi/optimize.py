@@ -116,7 +116,7 @@ def main(argv=None) -> int:
 
         try:
             out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"],
-                           progress=not args.no_progress)
+                           progress=not args.no_progress, **trainer.eval_options())
         except KeyboardInterrupt:
             print(f"the model is saved in {run}/model; finish the evaluation with `python -m glint_mi.evaluate {run}`")
             return 130

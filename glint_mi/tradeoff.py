@@ -79,7 +79,7 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
             else:
                 tr = Trainer(run, cfg, scene=read_scene(scene_xml), log=lambda *a: None)
             r = tr.train(progress=False)
-            res = evaluate(tr.integ_for_eval(), tr.eval_views(), run, r["train_s"])
+            res = evaluate(tr.integ_for_eval(), tr.eval_views(), run, r["train_s"], **tr.eval_options())
             res = {k: v for k, v in res.items() if k not in ("per_view", "renders")}
             log(f"{name}: {r['train_s']:.0f} s, PSNR {res['metrics']['psnr']:.2f}")
         seen[key] = (res, trained_as)

@@ -39,6 +39,22 @@ from .strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 
 
+def eval_options(cfg, root) -> dict:
+    """``evaluate`` keywords for a run's config: its depth rule and, for first_surface, the masks it reads."""
+    if cfg.eval_depth != "first_surface":
+        return {"depth_rule": cfg.eval_depth}
+    from .data.priors import load_prior
+
+    def glass_of(view):
+        m = load_prior(root, view, "glass")
+        if m is None:
+            from .data import DatasetError
+            raise DatasetError(f"{root}: eval_depth = first_surface (TSGS) needs priors/glass/{view.name}.(npy|png|exr)"
+                               f" for the test view '{view.name}' (the transparency mask its depth rule reads).")
+        return m
+    return {"depth_rule": "first_surface", "glass_of": glass_of}
+
+
 class Trainer:
     def __init__(self, run_dir: str | Path, cfg: TrainConfig, scene: OptimScene | None = None,
                  dataset: Dataset | None = None, log=print, resume: bool = False):
@@ -61,6 +77,10 @@ class Trainer:
         else:
             self._fresh()
         cfg = self.cfg
+        if cfg.eval_depth == "first_surface":  # TSGS's depth reads each test view's mask: refuse before training
+            glass_of = eval_options(cfg, self.ds.root)["glass_of"]
+            for v in self.ds.test_views:
+                glass_of(v)
         self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
                             glass_masks=cfg.trans_masks)
         self.report["priors"] = sorted(self.bank.has)
@@ -391,7 +411,7 @@ class Trainer:
         from . import metrics as M
         from .evaluate import evaluate
 
-        m = evaluate(self.integ_for_eval(), self.eval_views(), write=False)["metrics"]
+        m = evaluate(self.integ_for_eval(), self.eval_views(), write=False, **self.eval_options())["metrics"]
         row = {"iteration": self.it, "epoch": self.epoch,
                "train_s": self.elapsed, "gaussians": sum(len(s) for s in self.active_sets().values()),
                **{k: m.get(k, float("nan")) for k in M.METRICS}}
@@ -415,6 +435,11 @@ class Trainer:
         else:
             ds = self.ds
         return ds.test_views or ds.train_views
+
+    def eval_options(self) -> dict:
+        """How :func:`glint_mi.evaluate.evaluate` reads this method's depth: the config's ``eval_depth`` rule and,
+        for TSGS's first_surface, each view's transparency mask (priors/glass)."""
+        return eval_options(self.cfg, self.ds.root)
 
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
