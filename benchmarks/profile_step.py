@@ -94,8 +94,18 @@ def _rebuild_every(n):
     GaussianSetRef.REBUILD_EVERY = n
 
 
+def _adam(step):
+    from glint_mi.strategy import Adam
+    Adam.step = step
+
+
+from glint_mi.strategy import Adam as _Adam  # noqa: E402
+
 SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda: _rebuild_every(0),
-             lambda: _rebuild_every(100))]
+             lambda: _rebuild_every(100)),
+            ("Adam on gathered rows (row masks before)", lambda: _adam(_Adam.step_masked),
+             lambda: _adam(_ADAM_STEP))]
+_ADAM_STEP = _Adam.step
 
 
 def ab(tr: Trainer, steps_per_block: int, blocks: int = 4) -> dict:
