@@ -22,14 +22,15 @@ def glass_cue_check(self) -> None:  # self: the Trainer
         return
     why = ("no glass cue: no albedo prior and no depth prior aligned to SfM tracks, so L_trans could only "
            "compare two sets that fit the same surfaces (trans_cue: none keeps the paper's depth-gap rule)")
-    self.report["components"]["transmission"] = {"kept": False, "iteration": 0, "why": why}
-    self.dropped["transmission"] = why
-    self.log(f"components auto: drop transmission: {why}")
+    drops = {"transmission": why}
     if "reflection" in self.sets:  # what the glass would mirror: no glass, no reflection set (decide)
-        why_r = "no glass (the transmission set is dropped): a diffuse surface's Fresnel floor is its colour's"
-        self.report["components"]["reflection"] = {"kept": False, "iteration": 0, "why": why_r}
-        self.dropped["reflection"] = why_r
-        self.log(f"components auto: drop reflection: {why_r}")
+        drops["reflection"] = "no glass (the transmission set is dropped): a diffuse surface's Fresnel floor is its " \
+                              "colour's"
+    for role, reason in drops.items():
+        self.report["components"][role] = {"kept": False, "iteration": 0, "why": reason}
+        self.dropped[role] = reason
+        n = len(self.sets.pop(role))  # before the scene is built: never given a BVH, traced or saved
+        self.log(f"components auto: drop {role} (its {n} initial Gaussians discarded): {reason}")
     if c.no_glass == "3dgs":  # GLINT contains 3DGS: the lone interface is a radiance field, trained as 3DGS
         from .methods import METHODS
 
