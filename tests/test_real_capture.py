@@ -262,7 +262,7 @@ def test_evaluation_keeps_finished_views_on_ctrl_c(tmp_path, monkeypatch):
     views = load_dataset(folder).views
     calls = []
 
-    def fake_render(integ, view, need_direct=False):
+    def fake_render(integ, view, need_direct=False, depth_rule="expected", glass=None):
         calls.append(view.name)
         if len(calls) == 2:
             raise KeyboardInterrupt
