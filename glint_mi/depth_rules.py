@@ -53,10 +53,10 @@ def _median(alpha, depth, observe_t):
     return med, np.prod(1.0 - alpha, axis=1) <= observe_t
 
 
-def median_depth(alpha, depth, expected, observe_t: float = 0.5) -> np.ndarray:
-    """2DGS's median depth (depth_ratio 1) per ray; the expected depth where T never falls to 0.5."""
-    med, crossed = _median(alpha, depth, observe_t)
-    return np.where(crossed, med, expected)
+def median_depth(median_distance, z, expected) -> np.ndarray:
+    """2DGS's median depth (depth_ratio 1) per ray from the interface pass's median composite (the distance where T
+    falls to 0.5, 0 where it never does) and each ray's planar factor ``z``; the expected depth where T never falls."""
+    return np.where(median_distance > 0, median_distance * z, expected)
 
 
 def first_surface_depth(alpha, depth, transparent, window=0.03, start=0.0, end=0.2, observe_t=0.5, bg_t=0.98,

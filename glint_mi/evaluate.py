@@ -45,18 +45,18 @@ def render_view(integ, view: View, need_direct: bool = False, depth_rule: str = 
     for s in range(0, len(d), CHUNK):
         dd = d[s:s + CHUNK]
         ray = mi.Ray3f(mi.Point3f(*floats(np.broadcast_to(o, dd.shape))), mi.Vector3f(*floats(dd)))
-        lists = depth_rule != "expected"
+        lists = depth_rule == "first_surface"
         out = integ.trace(ray, mi.Bool(True), need={"trans_direct"} if need_direct else set(), forward=fwd,
                           record=lists)
         depth = out["depth"]
-        if lists:  # the depth rule reads the interface pass's composited Gaussians
+        if depth_rule == "median":  # the interface pass's own median composite, as planar depth
+            z = dd.astype(np.float64) @ f.astype(np.float64)
+            depth = mi.Float(depth_rules.median_depth(np.array(out["median"], np.float64), z,
+                                                      np.array(depth, np.float64)).astype(np.float32))
+        elif lists:  # TSGS's rule reads the interface pass's composited Gaussians
             alpha, z, _ = depth_rules.interface_hits(integ, ray, fwd, out["_lists"][0])
-            expected = np.array(depth, np.float64)
-            if depth_rule == "median":
-                depth = mi.Float(depth_rules.median_depth(alpha, z, expected).astype(np.float32))
-            else:
-                mask = np.zeros(len(dd)) if glass is None else glass.reshape(-1)[s:s + CHUNK]
-                depth = mi.Float(depth_rules.first_surface_depth(alpha, z, mask, **depth_rules.TSGS).astype(np.float32))
+            mask = np.zeros(len(dd)) if glass is None else glass.reshape(-1)[s:s + CHUNK]
+            depth = mi.Float(depth_rules.first_surface_depth(alpha, z, mask, **depth_rules.TSGS).astype(np.float32))
         vals = {"rgb": out["rgb"], "depth": depth, "normal": out["normal"], "transparency": out["transparency"],
                 "interface": out["interface"], "reflection": out["reflection"], "transmission": out["transmission"],
                 "alpha": out["alpha"]}
