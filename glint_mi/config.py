@@ -45,7 +45,9 @@ class TrainConfig:
     sh_degree: int = 1                   # highest SH degree; raised one band every sh_every of the run
     components: str = "auto"             # auto | all | comma list of interface,transmission,reflection
     max_order: int = 1
-    max_hits: int = 64                   # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget")
+    max_hits: int = 256                  # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget"); a
+    #                                      ray that spends it is cut short and the model learns the cut (log.csv
+    #                                      budget_full; 64 cost 1.7-2 dB on the unseen rooms, docs/performance.md)
     opacity_shells: bool = True          # each Gaussian's BVH shell ends where its alpha reaches the 1/255 cut-off
     #                                      (glint_gaussians' opacity_shells); false: 3.33 sigma for every opacity
     blend: str = "fresnel"               # fresnel (GLINT) | envgs: (1 - beta) c_I + beta c_R | alpha: plain compositing

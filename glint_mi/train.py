@@ -55,6 +55,18 @@ def eval_options(cfg, root) -> dict:
     return {"depth_rule": "first_surface", "glass_of": glass_of}
 
 
+BUDGET_WARN = 0.02  # share of the interface's rays that may spend the whole hit budget before the run warns
+
+
+def budget_full(out: dict, max_hits: int) -> float:
+    """Share of the batch's interface rays that composited ``max_hits`` hits (cut short with transmittance left:
+    the model then learns the cut), read from the forward's stored hit list; NaN when nothing was recorded."""
+    lists = out.get("_lists")
+    if not lists or lists[0] is None:
+        return float("nan")
+    return float(np.mean(np.asarray(lists[0][1]) >= max_hits))
+
+
 class Trainer:
     def __init__(self, run_dir: str | Path, cfg: TrainConfig, scene: OptimScene | None = None,
                  dataset: Dataset | None = None, log=print, resume: bool = False):
@@ -254,6 +266,7 @@ class Trainer:
         with phase("forward"):
             out = self.integ.trace(ray, active, need=need, forward=fwd, record=c.stored_hits)
             dr.eval(out["_passes"], out.get("_lists"))
+        full = budget_full(out, c.max_hits)
         with phase("objective"):
             terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent)
         with phase("backward"):
@@ -261,7 +274,7 @@ class Trainer:
             dr.eval()  # run the replay now (the gradients are read next anyway): its time is the backward's
         with phase("update"):
             self._update(st)
-        return {**terms, **stats}
+        return {**terms, **stats, "budget_full": full}
 
     def _update(self, st):
         import drjit as dr
@@ -400,10 +413,24 @@ class Trainer:
                      f"`python -m glint_mi.optimize --resume {self.run_dir}`")
             raise KeyboardInterrupt
         if self.it >= c.iterations:
+            self._check_budget()
             if c.eval_every > 0:
                 self.evaluate_now()
             self.save_model()
         return {"iterations": self.it, "train_s": self.elapsed}
+
+    def _check_budget(self):
+        """report.json ``hit_budget``: how often the last tenth of the run ran out of hits; a warning above 2 %."""
+        tail = self.history[-max(1, len(self.history) // 10):]
+        full = [r["budget_full"] for r in tail if np.isfinite(r.get("budget_full", np.nan))]
+        if not full:
+            return
+        share = float(np.mean(full))
+        self.report["hit_budget"] = {"max_hits": self.cfg.max_hits, "budget_full_last_tenth": share}
+        if share > BUDGET_WARN:
+            self.log(f"warning: {100 * share:.1f} % of the interface's rays spent the whole hit budget (max_hits "
+                     f"{self.cfg.max_hits}) in the last tenth of the run: they are cut short and the model learns "
+                     f"the cut; train again with --set max_hits={2 * self.cfg.max_hits}")
 
     def evaluate_now(self) -> dict:
         """Test-view metrics of the current model (no files but ``convergence.csv``), recorded against iteration,
@@ -504,7 +531,7 @@ class Trainer:
         if rows:
             keys = ["iteration", "stage", *LOSS_NAMES, "rays_per_s", "gaussians", "share_reflection",
                     "share_transmission", "mask_t", "gap_behind", "gap_front", "gain_reflection",
-                    "gain_transmission"]
+                    "gain_transmission", "budget_full"]
             buf = io.StringIO()
             w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
             w.writeheader()

@@ -654,3 +654,38 @@ def test_tsgs_glass_masks_from_a_segmenter_or_ground_truth(room, tmp_path):
     assert cfg.trans_masks == "prior"
     with pytest.raises(DatasetError, match="priors/glass"):
         Trainer(tmp_path / "run", cfg, scene=read_scene(tmp_path / "scene.xml"), log=lambda *a: None)
+
+
+def test_hit_budget_share_is_measured_and_warned(rng):
+    """A stack of 100 faint surfels in front of every ray: a 64-hit budget cuts every ray short (transmittance
+    0.98^64 left) and ``budget_full`` says so; 256 hits reach the end of the stack and it reads 0. The run warns and
+    reports when more than 2 % of its last tenth ran out (the model learns the cut: 1.7-2 dB on the unseen rooms)."""
+    import types
+
+    from conftest import make_integrator, rays
+    from glint_mi.train import budget_full
+
+    n = 100
+    surfels = GaussianSet.from_activated(np.c_[np.zeros((n, 2)), np.linspace(1.0, 3.0, n)],
+                                         np.c_[np.full((n, 2), 2.0), np.full(n, 0.01)],
+                                         opacities=np.full(n, 0.02), colors=rng.uniform(0, 1, (n, 3)))
+    m = 32
+    r = rays(np.c_[rng.uniform(-0.3, 0.3, (m, 2)), np.zeros(m)], np.c_[np.zeros((m, 2)), np.ones(m)])
+    shares = {}
+    for budget in (64, 256):
+        integ = make_integrator({"interface": surfels}, components="all", max_hits=budget)
+        with dr.suspend_grad():
+            out = integ.trace(r, mi.Bool(True), forward=mi.Vector3f(0, 0, 1), record=True)
+        shares[budget] = budget_full(out, budget)
+        assert np.isnan(budget_full({"rgb": out["rgb"]}, budget))  # nothing recorded: no claim
+    assert shares == {64: 1.0, 256: 0.0}
+
+    said = []
+    fake = types.SimpleNamespace(history=[{"budget_full": 0.0}] * 90 + [{"budget_full": 0.05}] * 10, report={},
+                                 cfg=types.SimpleNamespace(max_hits=64), log=said.append)
+    Trainer._check_budget(fake)
+    assert fake.report["hit_budget"] == {"max_hits": 64, "budget_full_last_tenth": pytest.approx(0.05)}
+    assert len(said) == 1 and "max_hits=128" in said[0]
+    fake.history, said[:] = [{"budget_full": 0.3}] * 90 + [{"budget_full": 0.01}] * 10, []
+    Trainer._check_budget(fake)
+    assert not said and fake.report["hit_budget"]["budget_full_last_tenth"] == pytest.approx(0.01)
