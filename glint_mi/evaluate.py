@@ -182,9 +182,9 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
     return out
 
 
-def load_run(run: str | Path, full: bool = False):
+def load_run(run: str | Path, full: bool = False, max_hits: int | None = None):
     """(integrator, dataset, config, train_s) of a finished run folder (its ``model/``); the dataset at the
-    training resolution, or with ``full`` at its full resolution."""
+    training resolution, or with ``full`` at its full resolution; ``max_hits`` replaces the run's hit budget."""
     import glint_mi
 
     from .config import TrainConfig
@@ -205,7 +205,8 @@ def load_run(run: str | Path, full: bool = False):
 
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
     scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components="all",
-                                             max_order=cfg.max_order, max_hits=cfg.max_hits, blend=cfg.blend))
+                                             max_order=cfg.max_order, max_hits=max_hits or cfg.max_hits,
+                                             blend=cfg.blend))
     ckpt = run / "checkpoint.npz"
     train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None
     return scene.integrator(), ds, cfg, train_s
@@ -216,26 +217,36 @@ def main(argv=None) -> int:
     ap.add_argument("run", type=Path)
     ap.add_argument("--full", action="store_true",
                     help="render the test views at the dataset's full resolution (default: the training one)")
+    ap.add_argument("--max-hits", type=int, default=None, metavar="N",
+                    help="render with a hit budget of N per ray and pass instead of the run's (a model trained with "
+                         "a budget its rays spend has learnt the cut: compare); writes RUN/max_hits_N/, not the "
+                         "run's own metrics")
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
+    if args.max_hits is not None and args.max_hits < 1:
+        print(f"error: --max-hits {args.max_hits}: give a positive hit budget (the run's is in "
+              f"{args.run}/config.json, max_hits)", file=sys.stderr)
+        return 2
     from .data import DatasetError
     from .runs import RunError
 
     try:
-        integ, ds, cfg, train_s = load_run(args.run, full=args.full)
+        integ, ds, cfg, train_s = load_run(args.run, full=args.full, max_hits=args.max_hits)
     except (RunError, DatasetError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     from .train import eval_options
     try:
-        res = evaluate(integ, ds.test_views, args.run, train_s, progress=not args.no_progress,
+        out = args.run if args.max_hits is None else args.run / f"max_hits_{args.max_hits}"
+        res = evaluate(integ, ds.test_views, out, train_s, progress=not args.no_progress,
                        **eval_options(cfg, ds.root))
     except KeyboardInterrupt:
         return 130
     except DatasetError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print(M.table({args.run.name: res["metrics"]}))
+    name = args.run.name if args.max_hits is None else f"{args.run.name} (max_hits {args.max_hits})"
+    print(M.table({name: res["metrics"]}))
     return 0
 
 

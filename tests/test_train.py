@@ -287,8 +287,10 @@ def test_cli_scene_optimize_evaluate(room, tmp_path):
     import csv
     rows = list(csv.DictReader(open(run / "log.csv")))
     l1 = np.array([float(x["l1"]) for x in rows])
-    # against the first steps' loss (with opacity shells the first ten steps already halve it: 0.17 -> 0.08)
-    assert l1[-20:].mean() < 0.7 * l1[:3].mean()
+    # against the first steps' loss: the initialisation (SfM colours) already renders at L1 ~0.085; 120 tiny steps
+    # end at ~0.073 (0.87x). With a 64-hit budget the first renders were cut short (38 % of the rays) and started at
+    # 0.17; PSNR against the initialisation, below, is the stronger check
+    assert l1[-20:].mean() < 0.93 * l1[:3].mean()
     m = json.loads((run / "metrics.json").read_text())["metrics"]
     # the initialisation's metrics, from the same scene: trained must beat them
     from glint_mi.evaluate import evaluate
@@ -308,6 +310,16 @@ def test_cli_scene_optimize_evaluate(room, tmp_path):
     m2 = json.loads((run / "metrics.json").read_text())["metrics"]
     for k in ("psnr", "ssim", "normal_mae", "absrel"):
         assert m2[k] == pytest.approx(m[k], rel=1e-4, abs=1e-6), k
+    # another hit budget is rendered beside the run's metrics, not over them; a budget of 1 hit loses the image
+    ev1 = subprocess.run(env_py + ["glint_mi.evaluate", str(run), "--max-hits", "1", "--no-progress"],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert ev1.returncode == 0 and "(max_hits 1)" in ev1.stdout, ev1.stderr[-2000:]
+    m1 = json.loads((run / "max_hits_1" / "metrics.json").read_text())["metrics"]
+    assert m1["psnr"] < m["psnr"] - 3.0, (m1, m)
+    assert json.loads((run / "metrics.json").read_text())["metrics"]["psnr"] == m2["psnr"]
+    bad = subprocess.run(env_py + ["glint_mi.evaluate", str(run), "--max-hits", "0"], capture_output=True, text=True,
+                         cwd=ROOT, timeout=120)
+    assert bad.returncode == 2 and "max_hits" in bad.stderr
     # resuming a finished run is refused with the fix named; a missing dataset path too
     again = subprocess.run(env_py + ["glint_mi.optimize", str(scene), "--preset", "tiny", "--out", str(run)],
                            capture_output=True, text=True, cwd=ROOT, timeout=120)
