@@ -30,6 +30,9 @@ GRID = {
     # rays per iteration stay the same; each ray then covers a 2 x 2 block (evaluation at full resolution); with an
     # epochs budget the half-resolution run gets a quarter of the iterations (the same rays per training pixel)
     "resolution": {"train 1/1 res": {}, "train 1/2 res": {"downscale": 2, "eval_full": True}},
+    # the hit budget per ray and pass: 64 was the default until a trained model was found to learn its cut
+    # (docs/performance.md, "The hit budget"); 256 is the default
+    "hits": {"64 hits": {"max_hits": 64}, "128 hits": {"max_hits": 128}, "256 hits": {"max_hits": 256}},
 }
 # the components question on a room WITHOUT glass (same room, `python -m glint_mi.dataset make --no-glass`)
 NO_GLASS = {"interface": {"components": "interface"}, "all three": {"components": "all"}, "auto": {"components": "auto"}}
