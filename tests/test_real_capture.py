@@ -311,6 +311,7 @@ def test_fox_real_capture_tiny(tmp_path):
     ckpt = np.load(run / "checkpoint.npz")
     assert not any(k.startswith(("set/transmission/", "set/reflection/")) for k in ckpt.files)
     cfg = json.loads((run / "config.json").read_text())  # no glass: the interface alone trains as 3DGS does
-    assert (cfg["kernel"], cfg["w_l1"], cfg["w_dssim"], cfg["w_consistency"]) == ("ellipsoid", 0.8, 0.2, 0.0)
+    assert (cfg["kernel"], cfg["w_l1"], cfg["w_dssim"], cfg["w_consistency"], cfg["w_sfm_depth"]) == \
+        ("ellipsoid", 0.8, 0.2, 0.0, 0.0)
     m = json.loads((run / "metrics.json").read_text())
     assert m["resolution"] == [133, 237] and m["views_done"] == 2 and np.isfinite(m["metrics"]["psnr"])

@@ -701,3 +701,20 @@ def test_hit_budget_share_is_measured_and_warned(rng):
     fake.history, said[:] = [{"budget_full": 0.3}] * 90 + [{"budget_full": 0.01}] * 10, []
     Trainer._check_budget(fake)
     assert not said and fake.report["hit_budget"]["budget_full_last_tenth"] == pytest.approx(0.01)
+
+
+@pytest.mark.parametrize("profile", ["3dgs", "3dgs+sfm"])
+def test_glint_without_a_glass_cue_trains_as_3dgs(room, tmp_path, profile):
+    """GLINT contains 3DGS: without priors (no glass cue) both extra sets are dropped and the resolved training
+    configuration equals the 3dgs method's except in fields that act only on the dropped sets (and, for 3dgs+sfm,
+    glint_mi's SfM depth term)."""
+    from glint_mi.methods import config_for
+
+    cfg = config_for("glint-no-priors", "tiny", log_every=1000, no_glass=profile)
+    tr = Trainer(tmp_path / "g", cfg, scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    assert set(tr.dropped) == {"transmission", "reflection"} and list(tr.sets) == ["interface"]
+    ref = config_for("3dgs", "tiny", log_every=1000).with_budget(tr.train_pixels)
+    differ = {f.name for f in dataclasses.fields(ref) if getattr(tr.cfg, f.name) != getattr(ref, f.name)}
+    inert = {"components", "blend", "w_direct", "w_trans", "w_treg", "w_plausibility"}
+    assert differ == inert | ({"w_sfm_depth", "no_glass"} if profile == "3dgs+sfm" else set()), differ
+    assert TrainConfig.load(tmp_path / "g" / "config.json").w_sfm_depth == tr.cfg.w_sfm_depth
