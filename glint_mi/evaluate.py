@@ -204,9 +204,9 @@ def load_run(run: str | Path, full: bool = False, max_hits: int | None = None):
     import mitsuba as mi
 
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
+    budget = cfg.max_hits if max_hits is None else max_hits
     scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components="all",
-                                             max_order=cfg.max_order, max_hits=max_hits or cfg.max_hits,
-                                             blend=cfg.blend))
+                                             max_order=cfg.max_order, max_hits=budget, blend=cfg.blend))
     ckpt = run / "checkpoint.npz"
     train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None
     return scene.integrator(), ds, cfg, train_s

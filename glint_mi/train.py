@@ -60,7 +60,9 @@ BUDGET_WARN = 0.02  # share of the interface's rays that may spend the whole hit
 
 def budget_full(out: dict, max_hits: int) -> float:
     """Share of the batch's interface rays that composited ``max_hits`` hits (cut short with transmittance left:
-    the model then learns the cut), read from the forward's stored hit list; NaN when nothing was recorded."""
+    the model then learns the cut), read from the forward's stored hit list; NaN when nothing was recorded. Exact for
+    the k-buffer traversal (its list count is its hit count); a lower bound for ``traversal: bvh``, whose budget also
+    counts a shell reported twice by the float32 test, which is listed once."""
     lists = out.get("_lists")
     if not lists or lists[0] is None:
         return float("nan")
