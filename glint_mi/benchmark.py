@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from . import metrics as M
+from .config import VARIANTS
 from .methods import METHODS, TABLE_METHODS, config_for
 
 COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae_glass", "absrel_glass", "t_iou",
@@ -268,7 +269,8 @@ def main(argv=None) -> int:
     ap.add_argument("--data", type=Path, required=True, help="folder of generated scenes")
     ap.add_argument("--make-data", type=int, metavar="N", help="generate N scenes into --data first (if missing)")
     ap.add_argument("--preset", default="bench", choices=["tiny", "quick", "bench"])
-    ap.add_argument("--variant", default="supplement", choices=["supplement", "release"])
+    ap.add_argument("--variant", default="glint_mi", choices=sorted(VARIANTS),
+                    help="schedule: glint_mi (default: the supplement's without the refine stage), supplement, release")
     ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")
     ap.add_argument("--iterations", type=int,
                     help="override the preset's budget (epochs) with a fixed iteration count (same for every method)")

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from .config import ConfigError, TrainConfig
+from .config import VARIANTS, ConfigError, TrainConfig
 
 
 def parse_sets(items) -> dict:
@@ -48,7 +48,7 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
         values["seed"] = args.seed
     values.update(parse_sets(args.set))
     preset = args.preset or values.pop("preset", None) or "quick"
-    variant = args.variant or values.pop("variant", None) or "supplement"
+    variant = args.variant or values.pop("variant", None) or "glint_mi"
     values.pop("preset", None), values.pop("variant", None)
     from .methods import config_for
 
@@ -62,7 +62,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, help="run folder (default runs/<scene folder name>)")
     ap.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in this folder")
     ap.add_argument("--preset", choices=["tiny", "quick", "bench"], help="size preset (default quick)")
-    ap.add_argument("--variant", choices=["supplement", "release"], help="schedule (default supplement)")
+    ap.add_argument("--variant", choices=sorted(VARIANTS),
+                    help="schedule: glint_mi (default: the supplement's without the refine stage), supplement, release")
     ap.add_argument("--method", default="glint",
                     help="a method of the comparison (glint_mi.methods: glint, 3dgs, 2dgs, ...; default glint)")
     ap.add_argument("--config", type=Path, help="JSON of TrainConfig fields")

@@ -1,6 +1,8 @@
 """The objective's remaining pieces against independent references: D-SSIM (scikit-image's SSIM), the transparency
 regulariser and the plausibility term (hand-computed values and finite differences), and the stage schedule of both
-schedule variants."""
+schedule variants (glint_mi, supplement, release)."""
+import dataclasses
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
@@ -82,7 +84,7 @@ def test_plausibility_pulls_only_the_transmission_set():
     assert np.abs(np.array(dr.grad(n_t))).sum() > 0
 
 
-@pytest.mark.parametrize("variant", ["supplement", "release"])
+@pytest.mark.parametrize("variant", ["glint_mi", "supplement", "release"])
 def test_stage_schedule(variant):
     """Which sets are traced and trained and which terms are on, iteration by iteration, for 600 iterations."""
     from types import SimpleNamespace
@@ -95,7 +97,7 @@ def test_stage_schedule(variant):
     stage = lambda it: Trainer.stage(fake, it)
     at = c.at
     s = stage(at(c.warmup) - 1)
-    if variant == "supplement":
+    if variant != "release":
         assert s["traced"] == {"interface"} and s["name"] == "warm-up" and not s["trans"] and not s["plausibility"]
     s = stage(max(at(c.transmission_from), at(c.reflection_from), at(c.warmup)))
     assert s["traced"] == {"interface", "transmission", "reflection"} and s["trained"] == s["traced"]
@@ -111,6 +113,14 @@ def test_stage_schedule(variant):
         assert "interface" in stage(at(c.refine_from) - 1)["trained"]
     else:
         assert last["name"] == "joint" and "interface" in last["trained"]
+    if variant == "glint_mi":  # glint_mi's default: the supplement's schedule without its refine stage
+        sup = TrainConfig.for_preset("tiny", "supplement", iterations=600, sh_degree=2)
+        differ = {k for k, v in dataclasses.asdict(c).items() if getattr(sup, k) != v}
+        assert differ == {"variant", "refine_from"} and c.refine_from == 1.0
+        from glint_mi.methods import config_for
+
+        assert config_for("glint-paper", "tiny").refine_from == sup.refine_from  # the paper's choices keep it
+        assert config_for("glint", "tiny").refine_from == config_for("tsgs", "tiny").refine_from == 1.0
     assert [stage(at(c.sh_every) * k)["sh_degree"] for k in range(4)] == [0, 1, 2, 2]
     assert stage(0)["depth"] and stage(0)["consistency"]
     fake.dropped = {"transmission": "x", "reflection": "y"}  # dropped sets are never traced again
