@@ -374,18 +374,19 @@ def test_adam_equals_the_row_masked_formulation_bit_for_bit(rng):
 
 
 def test_quality_of_the_demo_room(tmp_path):
-    """`make demo`'s configuration (the bundled room, quick preset, ~45 s alone on 2 cores): every metric near what
-    is measured (three runs before this test: PSNR 26.3-27.0, normal MAE 7.6-7.8, AbsRel 0.033-0.037, t IoU
-    0.60-0.66, t off glass 0.02; the quick preset's seed spread is +-0.8 dB, +-0.16 t IoU). A veil over the room
-    (t off glass) or transparency missing on the glass fails it."""
+    """`make demo`'s configuration (the bundled room, quick preset, ~75 s alone on 2 cores): every metric near what
+    is measured (two runs with the current schedule: PSNR 27.9-28.2, normal MAE 6.4-6.8, AbsRel 0.026-0.027, t IoU
+    0.73-0.77, t off glass 0.02-0.03; the quick preset's seed spread is +-0.8 dB, +-0.16 t IoU; with the refine
+    stage's freeze it measured 26.5-26.8 dB). A veil over the room (t off glass) or transparency missing on the glass
+    fails it."""
     tr = Trainer(tmp_path / "q", TrainConfig.for_preset("quick"),
                  scene=read_scene(ROOT / "scenes" / "glass_room" / "optimize.xml"), log=lambda *a: None)
     tr.train(progress=False)
     from glint_mi.evaluate import evaluate
 
     m = evaluate(tr.integ_for_eval(), tr.ds.test_views, write=False)["metrics"]
-    assert m["psnr"] > 25.0 and m["normal_mae"] < 10.0 and m["absrel"] < 0.07, m
-    assert m["t_iou"] > 0.4 and m["t_off_glass"] < 0.08 and m["t_on_glass"] > 0.4, m
+    assert m["psnr"] > 26.3 and m["normal_mae"] < 9.0 and m["absrel"] < 0.05, m
+    assert m["t_iou"] > 0.45 and m["t_off_glass"] < 0.08 and m["t_on_glass"] > 0.45, m
 
 
 def test_epochs_budget_sets_iterations(room, tmp_path):
