@@ -93,6 +93,9 @@ class TrainConfig:
     #                                      view over the view's rays in each batch (~2.5 patches)
     depth_refit: float = 0.02
     w_normal: float = 0.3
+    prior_decay: float = 1.0             # from this fraction of the run the depth and normal prior weights fall
+    #                                      linearly to 0 at its end (a monocular estimate guides the early geometry,
+    #                                      the views refine it); 1.0 = constant weights (the paper)
     w_consistency: float = 0.1
     consistency_depth: str = "expected"  # the depth whose normals the consistency term compares: expected (GLINT) or
     #                                      median (2DGS's depth_ratio 1: the distance where T falls to 0.5)
@@ -262,7 +265,8 @@ class TrainConfig:
             if f.name.startswith(("w_", "lr_")):
                 need(isinstance(v, (int, float)) and v >= 0, f.name, "must be a number >= 0")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "normal_from", "trans_from",
-                  "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from"):
+                  "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from",
+                  "prior_decay"):
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
 
     def rays_per_iteration(self) -> int:

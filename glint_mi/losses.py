@@ -240,6 +240,8 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             leaves["distortion"] = _leaf(out["distortion"])
             parts["distortion"] = c.w_dist * dr.mean(leaves["distortion"])
         out_depth = depth  # the interface's planar depth (the depth term below may work in 1 / depth)
+        # the prior terms' schedule (prior_decay): an opaque scalar, so the kernels stay the same while it falls
+        prior_w = dr.opaque(mi.Float, st.get("prior_scale", 1.0)) if c.prior_decay < 1.0 else 1.0
         if st["depth"]:
             prior = floats(b.depth_prior)
             mask = (prior > 0) & (A > 0.5)
@@ -253,11 +255,11 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                 vid = mi.UInt32(aligned(np.where(fit, n_views, b.view), np.uint32))  # fitted views: a spare slot
                 w_b, q_b = depth_fit(depth, prior, mask & mi.Bool(aligned(~fit, bool)), vid, n_views + 1)
                 sel = mi.Bool(aligned(fit, bool))
-                parts["depth"] = c.w_depth * depth_loss_aligned(depth, prior, mask, dr.select(sel, w_fix, w_b),
+                parts["depth"] = c.w_depth * prior_w * depth_loss_aligned(depth, prior, mask, dr.select(sel, w_fix, w_b),
                                                                 dr.select(sel, q_fix, q_b))
             else:
                 vid = mi.UInt32(aligned(b.view, np.uint32))
-                parts["depth"] = c.w_depth * depth_loss(depth, prior, mask, vid, n_views)
+                parts["depth"] = c.w_depth * prior_w * depth_loss(depth, prior, mask, vid, n_views)
         if st["sfm_depth"] and b.sfm_depth is not None:
             z = floats(b.sfm_depth)
             m = (z > 0) & (A > 0.5)
@@ -268,7 +270,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
             prior = mi.Vector3f(*floats(b.normal_prior))
             valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
-            parts["normal"] = c.w_normal * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
+            parts["normal"] = c.w_normal * prior_w * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
                                                        st["normal_masked"])[0]
         if "transmission" in st["traced"]:
             Dc, Dd, Dn, DA = out["trans_direct"]

@@ -224,6 +224,9 @@ class Trainer:
                 "normal": c.w_normal > 0 and "normal" in self.bank.has and (on(c.normal_from)
                                                                            or c.normal_early == "unmasked"),
                 "normal_masked": on(c.normal_from),
+                # prior_decay < 1: the prior terms' weight, 1 until then, linearly to 0 at the last iteration
+                "prior_scale": 1.0 if c.prior_decay >= 1.0 else
+                min(1.0, max(0.0, (c.iterations - it) / max(1, c.iterations - c.at(c.prior_decay)))),
                 "consistency": c.w_consistency > 0 and on(c.consistency_from),
                 "distortion": c.w_dist > 0 and on(c.dist_from),
                 "direct": has_t and c.w_direct > 0,
