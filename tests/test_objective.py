@@ -260,3 +260,25 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     assert part["normal"] == pytest.approx(0.25 * full["normal"], rel=1e-5)
     assert part["l1"] == pytest.approx(full["l1"], rel=1e-6)
     assert not compiled, compiled
+
+
+@pytest.mark.parametrize("cover, share, kept", [(0.0041, 0.0063, True),    # tuning room 7301 with its glass case
+                                                (0.0003, 0.0033, False),   # the same room without the glass
+                                                (0.0041, 0.0030, False)])  # mask but no energy through the set
+def test_components_auto_decision_on_the_measured_pair(cover, share, kept):
+    """components: auto decides at the end of densification from L_trans's mask coverage (mean since it started)
+    and the transmission set's share of the image energy: the pair measured on room 7301 with and without its glass
+    (docs/decisions.md) falls on either side of the default thresholds."""
+    from types import SimpleNamespace
+
+    from glint_mi import components
+
+    c = TrainConfig.for_preset("bench", iterations=1000)
+    at = c.at(max(c.densify_until, c.trans_from + 0.1))
+    hist = [{"mask_t": cover, "share_transmission": share, "share_reflection": 0.05}] * 60
+    logs = []
+    fake = SimpleNamespace(cfg=c, it=at - 1, sets={"interface": 0, "transmission": 0, "reflection": 0}, dropped={},
+                           history=hist, report={"components": {}}, log=logs.append)
+    components.decide(fake, {})
+    assert fake.report["components"]["transmission"]["kept"] is kept, logs
+    assert ("transmission" not in fake.dropped) is kept
