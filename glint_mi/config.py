@@ -1,4 +1,5 @@
-"""Training configuration: one flat dataclass, presets sized for 2 CPU cores, and the schedule variants (the paper's two and glint_mi's).
+"""Training configuration: one flat dataclass, presets sized for 2 CPU cores, and the schedule variants (the
+paper's two and glint_mi's).
 
 Iteration-dependent settings are *fractions of the run* (the paper's 60k-iteration schedule, rescaled): e.g. the
 transparency bootstrapping starts at 5k/60k = 0.083 of the run. ``variant`` picks the schedule: the supplement's,
@@ -20,6 +21,9 @@ LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "sfm_depth", "normal", 
               "treg", "plausibility")
 
 
+DEFAULT_VARIANT = "glint_mi"  # the schedule of VARIANTS that every entry point uses unless told otherwise
+
+
 class ConfigError(ValueError):
     """Bad configuration; the message names the field and the fix."""
 
@@ -27,7 +31,7 @@ class ConfigError(ValueError):
 @dataclasses.dataclass
 class TrainConfig:
     preset: str = "quick"
-    variant: str = "glint_mi"            # glint_mi | supplement | release (glint-method.md section 5; VARIANTS)
+    variant: str = DEFAULT_VARIANT       # glint_mi | supplement | release (glint-method.md section 5; VARIANTS)
     seed: int = 0
     # budget: rays per iteration = patches * patch^2, drawn across training views
     iterations: int = 1500
@@ -180,7 +184,7 @@ class TrainConfig:
 
     # -------------------------------------------------------------- helpers
     @classmethod
-    def for_preset(cls, preset: str, variant: str = "glint_mi", **overrides) -> "TrainConfig":
+    def for_preset(cls, preset: str, variant: str = DEFAULT_VARIANT, **overrides) -> "TrainConfig":
         if preset not in PRESETS:
             raise ConfigError(f"unknown preset '{preset}'; use one of {sorted(PRESETS)}.")
         if variant not in VARIANTS:

@@ -255,8 +255,8 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                 vid = mi.UInt32(aligned(np.where(fit, n_views, b.view), np.uint32))  # fitted views: a spare slot
                 w_b, q_b = depth_fit(depth, prior, mask & mi.Bool(aligned(~fit, bool)), vid, n_views + 1)
                 sel = mi.Bool(aligned(fit, bool))
-                parts["depth"] = c.w_depth * prior_w * depth_loss_aligned(depth, prior, mask, dr.select(sel, w_fix, w_b),
-                                                                dr.select(sel, q_fix, q_b))
+                parts["depth"] = c.w_depth * prior_w * depth_loss_aligned(
+                    depth, prior, mask, dr.select(sel, w_fix, w_b), dr.select(sel, q_fix, q_b))
             else:
                 vid = mi.UInt32(aligned(b.view, np.uint32))
                 parts["depth"] = c.w_depth * prior_w * depth_loss(depth, prior, mask, vid, n_views)
@@ -271,7 +271,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             prior = mi.Vector3f(*floats(b.normal_prior))
             valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
             parts["normal"] = c.w_normal * prior_w * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
-                                                       st["normal_masked"])[0]
+                                                                 st["normal_masked"])[0]
         if "transmission" in st["traced"]:
             Dc, Dd, Dn, DA = out["trans_direct"]
             Dc, Dd, Dn, DA = _leaf(mi.Color3f(Dc)), _leaf(Dd), _leaf(Dn), _leaf(DA)

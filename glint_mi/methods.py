@@ -97,9 +97,9 @@ METHODS = {m.name: m for m in [
 TABLE_METHODS = ("3dgs", "2dgs", "pgsr", "envgs", "tsgs", "glint")
 
 
-def config_for(method: str, preset: str, variant: str = "glint_mi", **extra):
-    from .config import ConfigError, TrainConfig
+def config_for(method: str, preset: str, variant: str | None = None, **extra):
+    from .config import DEFAULT_VARIANT, ConfigError, TrainConfig
 
     if method not in METHODS:
         raise ConfigError(f"unknown method '{method}'; use one of {sorted(METHODS)}.")
-    return TrainConfig.for_preset(preset, variant, **{**METHODS[method].overrides, **extra})
+    return TrainConfig.for_preset(preset, variant or DEFAULT_VARIANT, **{**METHODS[method].overrides, **extra})

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from .config import VARIANTS, ConfigError, TrainConfig
+from .config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig
 
 
 def parse_sets(items) -> dict:
@@ -48,7 +48,7 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
         values["seed"] = args.seed
     values.update(parse_sets(args.set))
     preset = args.preset or values.pop("preset", None) or "quick"
-    variant = args.variant or values.pop("variant", None) or "glint_mi"
+    variant = args.variant or values.pop("variant", None) or DEFAULT_VARIANT
     values.pop("preset", None), values.pop("variant", None)
     from .methods import config_for
 
