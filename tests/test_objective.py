@@ -84,6 +84,18 @@ def test_plausibility_pulls_only_the_transmission_set():
     assert np.abs(np.array(dr.grad(n_t))).sum() > 0
 
 
+def _traced_batch(tr, st):
+    """One ray batch of a trainer's bank traced with the sets the stage ``st`` traces: (batch, rays, camera
+    forward axes, the integrator's buffers), the inputs of ``losses.batch_objective``."""
+    c = tr.cfg
+    tr.integ.enabled = set(st["traced"])
+    b = tr.bank.sample(np.random.default_rng(0), c.patches, c.patch)
+    ray = mi.Ray3f(mi.Point3f(*[mi.Float(b.origin[:, k]) for k in range(3)]),
+                   mi.Vector3f(*[mi.Float(b.direction[:, k]) for k in range(3)]))
+    fwd = mi.Vector3f(*[mi.Float(b.axes[:, k, 2]) for k in range(3)])
+    return b, ray, fwd, tr.integ.trace(ray, mi.Bool(True), forward=fwd)
+
+
 @pytest.mark.parametrize("variant", ["glint_mi", "supplement", "release"])
 def test_stage_schedule(variant):
     """Which sets are traced and trained and which terms are on, iteration by iteration, for 600 iterations."""
@@ -164,12 +176,7 @@ def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
     assert terms["distortion"] > 0 and terms["consistency"] > 0
     # the consistency term's depth: shift the median, then the expected depth, of the same traced batch
     st = tr.stage()
-    tr.integ.enabled = set(st["traced"])
-    b = tr.bank.sample(np.random.default_rng(0), c.patches, c.patch)
-    ray = mi.Ray3f(mi.Point3f(*[mi.Float(b.origin[:, k]) for k in range(3)]),
-                   mi.Vector3f(*[mi.Float(b.direction[:, k]) for k in range(3)]))
-    fwd = mi.Vector3f(*[mi.Float(b.axes[:, k, 2]) for k in range(3)])
-    out = tr.integ.trace(ray, mi.Bool(True), forward=fwd)
+    b, ray, fwd, out = _traced_batch(tr, st)
     rng = np.random.default_rng(1)
     value = lambda o: L.batch_objective(c, b, o, st, ray, fwd, len(tr.bank.views), tr.extent)[0]["consistency"]
     base = value(out)
@@ -238,12 +245,7 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     tr.it = c.at(0.6)
     st = tr.stage()
     assert st["depth"] and st["normal"]
-    tr.integ.enabled = set(st["traced"])
-    b = tr.bank.sample(np.random.default_rng(0), c.patches, c.patch)
-    ray = mi.Ray3f(mi.Point3f(*[mi.Float(b.origin[:, k]) for k in range(3)]),
-                   mi.Vector3f(*[mi.Float(b.direction[:, k]) for k in range(3)]))
-    fwd = mi.Vector3f(*[mi.Float(b.axes[:, k, 2]) for k in range(3)])
-    out = tr.integ.trace(ray, mi.Bool(True), forward=fwd)
+    b, ray, fwd, out = _traced_batch(tr, st)
     terms = lambda s: L.batch_objective(c, b, out, {**st, "prior_scale": s}, ray, fwd, len(tr.bank.views),
                                         tr.extent)[0]
     full = terms(1.0)
