@@ -11,7 +11,7 @@ a step spent in BVH traversal (forward + the replay, which re-traces every pass)
     .venv/bin/python benchmarks/profile_step.py                        # the bundled demo room, fresh init
     .venv/bin/python benchmarks/profile_step.py --run out/demo/run     # a trained run: its config and Gaussians
     .venv/bin/python benchmarks/profile_step.py --scene SCENE.xml [--at 0.3] [--steps 30]
-    .venv/bin/python benchmarks/profile_step.py --run RUN --ab          # + the exact speed-ups off vs on, side by side
+    .venv/bin/python benchmarks/profile_step.py --run RUN --ab [NAME]   # + the exact speed-ups (NAME: those named so) off vs on
 
 Syncing between phases removes the overlap of Python with running kernels, so the phases add up to a little more
 than an unprofiled step; the table prints both. Results: benchmarks/results/profile_step_<name>.{md,json}.
@@ -99,25 +99,33 @@ def _adam(step):
     Adam.step = step
 
 
+def _kbuffer_k(tr, k):
+    tr.integ.kbuffer_k = k
+
+
 from glint_mi.strategy import Adam as _Adam  # noqa: E402
 
-SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda: _rebuild_every(0),
-             lambda: _rebuild_every(100)),
-            ("Adam on gathered rows (row masks before)", lambda: _adam(_Adam.step_masked),
-             lambda: _adam(_ADAM_STEP))]
+SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda tr: _rebuild_every(0),
+             lambda tr: _rebuild_every(100)),
+            ("Adam on gathered rows (row masks before)", lambda tr: _adam(_Adam.step_masked),
+             lambda tr: _adam(_ADAM_STEP)),
+            ("one k-buffer round for the hit budget (64 entries a round before)", lambda tr: _kbuffer_k(tr, 64),
+             lambda tr: _kbuffer_k(tr, tr.integ.max_hits))]
 _ADAM_STEP = _Adam.step
 
 
-def ab(tr: Trainer, steps_per_block: int, blocks: int = 4) -> dict:
-    """Median step seconds with the SPEEDUPS off ('before') and on ('after'), in alternating blocks, each from the
-    same iteration of the schedule (the stage of the profile above; the model keeps training)."""
+def ab(tr: Trainer, steps_per_block: int, blocks: int = 4, only: str = "") -> dict:
+    """Median step seconds with the SPEEDUPS (those whose name holds ``only``) off ('before') and on ('after'), in
+    alternating blocks, each from the same iteration of the schedule (the stage of the profile above; the model keeps
+    training)."""
     times = {"before": [], "after": []}
     it0 = tr.it
     for _ in range(blocks):
         for variant in ("before", "after"):
             tr.it = it0
             for name, off, on in SPEEDUPS:
-                (off if variant == "before" else on)()
+                if only in name:
+                    (off if variant == "before" else on)(tr)
             times[variant] += steps(tr, steps_per_block, None)[1:]  # the first step of a block pays the switch
     return {k: statistics.median(v) for k, v in times.items()}
 
@@ -178,7 +186,7 @@ def traversal(tr: Trainer) -> list[dict]:
     return rows
 
 
-def markdown(name, tr, plain, prof, n, trav, before_after=None) -> str:
+def markdown(name, tr, plain, prof, n, trav, before_after=None, only: str = "") -> str:
     rays = tr.cfg.patches * tr.cfg.patch ** 2
     step = statistics.median(plain)
     prof_total = sum(r["wall"] for r in prof.rows.values()) / n
@@ -214,7 +222,7 @@ def markdown(name, tr, plain, prof, n, trav, before_after=None) -> str:
     if before_after:
         b, a = before_after["before"], before_after["after"]
         lines += ["Exact speed-ups without a config switch, off (before) and on (after), alternating blocks of steps in "
-                  "this run: " + "; ".join(n for n, _, _ in SPEEDUPS) + ".", "",
+                  "this run: " + "; ".join(n for n, _, _ in SPEEDUPS if only in n) + ".", "",
                   "| | step ms | rays/s | x |", "|---|---|---|---|",
                   f"| before | {1e3 * b:.1f} | {rays / b:.0f} | 1.00 |",
                   f"| after | {1e3 * a:.1f} | {rays / a:.0f} | {b / a:.2f} |", ""]
@@ -232,8 +240,9 @@ def main(argv=None) -> int:
     ap.add_argument("--steps", type=int, default=20, help="steps timed unprofiled, and again profiled")
     ap.add_argument("--name", help="results name (default: the scene's or run's folder)")
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="TrainConfig override")
-    ap.add_argument("--ab", action="store_true", help="also time the exact speed-ups without a config switch off and "
-                    "on, in alternating blocks of --steps steps")
+    ap.add_argument("--ab", nargs="?", const="", default=None, metavar="NAME",
+                    help="also time the exact speed-ups without a config switch (those whose name holds NAME, e.g. "
+                    "'k-buffer'; all without it) off and on, in alternating blocks of --steps steps")
     args = ap.parse_args(argv)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     quiet = lambda *a, **k: None
@@ -260,8 +269,8 @@ def main(argv=None) -> int:
     steps(tr, args.steps, prof)
     trav = traversal(tr)
     tr.it = it0
-    before_after = ab(tr, args.steps) if args.ab else None
-    text = markdown(name, tr, plain, prof, args.steps, trav, before_after)
+    before_after = ab(tr, args.steps, only=args.ab) if args.ab is not None else None
+    text = markdown(name, tr, plain, prof, args.steps, trav, before_after, only=args.ab or "")
     print(text)
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)

@@ -142,12 +142,21 @@ def test_kbuffer_and_bvh_render_the_same():
 
 @needs_native
 def test_buffer_size_does_not_change_the_image(monkeypatch):
+    import glint_mi_plugins.glint_march as gm
+
+    rounds = []
+    query = native.ShellSet.query
+    monkeypatch.setattr(native.ShellSet, "query", lambda self, *a: rounds.append(a[5]) or query(self, *a))
     ref = _render(4, traversal="kbuffer", kbuffer_k=64)
-    for k in (1, 3, 16):
+    for k in (1, 3, 16, 256):
         np.testing.assert_array_equal(_render(4, traversal="kbuffer", kbuffer_k=k), ref)
-    import glint_mi_plugins.glint_integrator as gi
-    monkeypatch.setattr(gi, "KBUFFER_BYTES", 12 * 48 * 36 * 5)  # the memory cap: 5 entries per round here
+    rounds.clear()
+    np.testing.assert_array_equal(_render(4, traversal="kbuffer"), ref)  # the default: the hit budget in one round
+    assert set(rounds) == {256} and len(rounds) == 3, rounds  # one round per pass
+    monkeypatch.setattr(gm, "KBUFFER_BYTES", 12 * 48 * 36 * 5)  # the memory cap: 5 entries per round here
+    rounds.clear()
     np.testing.assert_array_equal(_render(4, traversal="kbuffer"), ref)
+    assert set(rounds) == {5} and len(rounds) > 3, rounds
 
 
 @needs_native
