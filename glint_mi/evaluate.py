@@ -182,9 +182,11 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
     return out
 
 
-def load_run(run: str | Path, full: bool = False, max_hits: int | None = None):
+def load_run(run: str | Path, full: bool = False, max_hits: int | None = None, components: str = "all"):
     """(integrator, dataset, config, train_s) of a finished run folder (its ``model/``); the dataset at the
-    training resolution, or with ``full`` at its full resolution; ``max_hits`` replaces the run's hit budget."""
+    training resolution, or with ``full`` at its full resolution; ``max_hits`` replaces the run's hit budget;
+    ``components`` is the integrator's (``all``: the exact first-order model; ``auto`` or a comma list of sets trade
+    accuracy for speed, see ``benchmarks/bench_render_tradeoff.py``)."""
     import glint_mi
 
     from .config import TrainConfig
@@ -205,7 +207,7 @@ def load_run(run: str | Path, full: bool = False, max_hits: int | None = None):
 
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
     budget = cfg.max_hits if max_hits is None else max_hits
-    scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components="all",
+    scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components=components,
                                              max_order=cfg.max_order, max_hits=budget, blend=cfg.blend))
     ckpt = run / "checkpoint.npz"
     train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None

@@ -719,3 +719,28 @@ def test_glint_without_a_glass_cue_trains_as_3dgs(room, tmp_path, profile):
     inert = {"components", "blend", "w_direct", "w_trans", "w_treg", "w_plausibility"}
     assert differ == inert | ({"w_sfm_depth", "no_glass"} if profile == "3dgs+sfm" else set()), differ
     assert TrainConfig.load(tmp_path / "g" / "config.json").w_sfm_depth == tr.cfg.w_sfm_depth
+
+
+def test_render_tradeoff_benchmark_on_a_trained_run(room, tmp_path):
+    """benchmarks/bench_render_tradeoff.py renders one trained run with render-time variants: one row per variant,
+    the base as `evaluate` renders it, Mitsuba's queries (the CUDA path) the same image model, dropping sets a
+    different image; the summary's base is 1.00x and +0 dB."""
+    import csv
+    import sys as _sys
+
+    _sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_render_tradeoff as brt
+
+    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=4, patches=4, components="all"),
+                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    tr.train(progress=False)
+    assert brt.main([str(tmp_path / "run"), "--reps", "1", "--variants", "2,7,8", "--out", str(tmp_path / "o")]) == 0
+    rows = {r["variant"]: r for r in csv.DictReader(open(tmp_path / "o" / "render_tradeoff.csv"))}
+    names = [v[0] for i, v in enumerate(brt.VARIANTS) if i in (0, 2, 7, 8)]
+    assert list(rows) == names
+    base, bvh, alone = (float(rows[n]["psnr"]) for n in (names[0], names[3], names[2]))
+    assert abs(bvh - base) < 0.05 and abs(alone - base) > 0.01, (base, bvh, alone)
+    assert float(rows[names[1]]["max_hits"]) == 64 and rows[names[3]]["traversal"] == "bvh"
+    text = (tmp_path / "o" / "render_tradeoff.md").read_text()
+    assert "| base (run's budget, all sets) |" in text and "| 1.00 |" in text and "+0.00" in text
+    assert (tmp_path / "o" / "render_tradeoff.png").stat().st_size > 0
