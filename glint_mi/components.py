@@ -37,7 +37,10 @@ def glass_cue_check(self) -> None:  # self: the Trainer
         m = METHODS["3dgs"].overrides
         # the SfM depth term is glint_mi's, no baseline's: on the unseen rooms (256 hits, 4 rooms x 2 seeds) it cost
         # 0.22 dB against 3dgs (0.6 on 7104) for better depth, so "3dgs" is 3DGS exactly and "3dgs+sfm" keeps it
-        fields = ("kernel", "w_l1", "w_dssim", "w_consistency") + (("w_sfm_depth",) if c.no_glass == "3dgs" else ())
+        # blend: with both extra sets gone GLINT's Fresnel weights give everything to the diffuse term, the same
+        # image as plain alpha compositing up to float rounding; the 3dgs blend makes it bit for bit the 3dgs method
+        fields = ("kernel", "blend", "w_l1", "w_dssim", "w_consistency") + (
+            ("w_sfm_depth",) if c.no_glass == "3dgs" else ())
         profile = {k: m[k] for k in fields}
         self.cfg = dataclasses.replace(c, **profile)
         self.strategy.cfg = self.cfg

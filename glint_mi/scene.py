@@ -223,13 +223,18 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
         tmp = folder.with_name(f"0.partial-{__import__('os').getpid()}")
         write_colmap_text(tmp, [c.scaled(1 / scale[c.name]) for c in cams], (xyz, rgb),
                           {n: (xy / scale[n], rows) for n, (xy, rows) in tracks.items()})
+        source = "triangulated"
         try:
             tmp.rename(folder)
-        except OSError:  # another process cached it first
-            import shutil
+        except OSError:  # another process cached it first: use its points, so that every run shares one cloud
+            import shutil                                 # (SIFT matching is multi-threaded: two triangulations of
+                                                          # the same images differ by a few points)
+            from .data.colmap import read_text
 
             shutil.rmtree(tmp, ignore_errors=True)
-        rep = {"source": "triangulated", "points": int(len(xyz)), "cache": str(folder),
+            _, _, xyz, rgb, _, _ = read_text(folder)
+            source = "triangulated (another run cached its own first; those points are used)"
+        rep = {"source": source, "points": int(len(xyz)), "cache": str(folder),
                "seconds": round(time.perf_counter() - t0, 1), **stats}
         log(f"SfM (pycolmap, known poses): {stats['points3D']} points, {stats['mean_reprojection_error_px']:.2f} px "
             f"in {rep['seconds']:.0f} s")
