@@ -143,3 +143,27 @@ def test_benchmark_on_a_local_ray_instance(tmp_path):
     assert (out / "runs" / "scene_000" / "3dgs" / "metrics.json").stat().st_mtime == mtime
     bad = subprocess.run(cmd[:-1] + ["127.0.0.1:1"], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert bad.returncode == 2 and "cannot reach the Ray cluster at '127.0.0.1:1'" in bad.stderr
+
+
+def test_budget_curve_compares_like_with_like(tmp_path):
+    """benchmarks/budget_curve.py: per method, only the (room, seed) runs present at every budget count; a run found
+    in two folders of one budget is taken from the first; the summary's mean and spread are those runs'."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import budget_curve
+
+    head = "method,scene,seed,fps,train_s,psnr,normal_mae,absrel,ssim,normal_mae_glass,absrel_glass,t_iou,t_off_glass\n"
+    row = lambda m, s, seed, psnr: f"{m},{s},{seed},1,100,{psnr},10,0.1,0.8,20,0.2,0.5,0.01\n"
+    for name, text in {"a": row("glint", "r1", 0, 20) + row("glint", "r1", 1, 22) + row("glint", "r2", 0, 30),
+                       "b": row("glint", "r1", 0, 99) + row("3dgs", "r1", 0, 21),
+                       "c": row("glint", "r1", 0, 25) + row("glint", "r1", 1, 27) + row("3dgs", "r1", 0, 23)}.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "results.csv").write_text(head + text)
+    assert budget_curve.main([f"3={tmp_path / 'a'},{tmp_path / 'b'}", f"10={tmp_path / 'c'}",
+                              "--out", str(tmp_path / "o")]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "o" / "budget.csv")))
+    assert sorted((r["method"], r["epochs"], r["scene"], r["seed"]) for r in rows) == [
+        ("3dgs", "10.0", "r1", "0"), ("3dgs", "3.0", "r1", "0"), ("glint", "10.0", "r1", "0"), ("glint", "10.0", "r1", "1"),
+        ("glint", "3.0", "r1", "0"), ("glint", "3.0", "r1", "1")]  # r2 only at 3 epochs; b's glint r1 is a's
+    md = (tmp_path / "o" / "budget.md").read_text()
+    assert "| glint | 3 | 2 | 21.00 (20.00-22.00) |" in md and "| 3dgs | 10 | 1 | 23.00 |" in md
+    assert (tmp_path / "o" / "budget.png").stat().st_size > 0
