@@ -26,7 +26,10 @@ test-slow: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_integrator.py
-	$(PY) benchmarks/profile_step.py
+	$(PY) benchmarks/profile_step.py --ab
+	@if [ -d out/demo/run/model ]; then \
+		$(PY) benchmarks/bench_render_tradeoff.py out/demo/run --out benchmarks/results/render_tradeoff_demo; \
+	else echo "bench: no out/demo/run (make demo first) - evaluation renders not timed"; fi
 
 # Optional: Blender Cycles for the cross-check, in its own venv (bpy 5.0.1 pins numpy<2, ~1 GB).
 cycles-env: .venv-cycles/.installed
