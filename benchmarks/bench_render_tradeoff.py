@@ -118,7 +118,7 @@ def plot(summary: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(1, 3, figsize=(13, 3.6))
-    for a, q in zip(ax, ("psnr", "normal_mae", "t_iou")):
+    for a, q in zip(ax, ("psnr", "ssim", "t_iou")):  # normal MAE and AbsRel come from the interface pass alone
         a.scatter([s["fps"] for s in summary], [s[q] for s in summary], s=20)
         for s in summary:
             a.annotate(s["variant"], (s["fps"], s[q]), fontsize=6)
@@ -141,17 +141,23 @@ def main(argv=None) -> int:
                     "fps: the median of the others)")
     ap.add_argument("--variants", help="comma list of variant numbers to keep (0 = the base, always kept)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "render_tradeoff")
+    ap.add_argument("--from-csv", action="store_true", help="render nothing: summarise and plot OUT/render_tradeoff.csv")
     args = ap.parse_args(argv)
+    variants = VARIANTS
+    if args.variants:
+        keep = {0} | {int(i) for i in args.variants.split(",")}
+        variants = [v for i, v in enumerate(VARIANTS) if i in keep]
+    if args.from_csv:
+        with open(args.out / "render_tradeoff.csv") as fh:
+            rows = [{k: (v if k in ("run", "variant", "components", "traversal") else float(v)) for k, v in r.items()}
+                    for r in csv.DictReader(fh)]
+        return report(rows, [v for v in variants if any(r["variant"] == v[0] for r in rows)], args.out)
     runs = list(args.runs) + (find_runs(args.runs_dir, args.method) if args.runs_dir else [])
     if not runs:
         ap.error("no runs: give run folders, or --runs-dir with finished runs of --method")
     for r in runs:
         if not (r / "model").is_dir() or not (r / "config.json").exists():
             ap.error(f"{r}: not a finished run (needs config.json and model/)")
-    variants = VARIANTS
-    if args.variants:
-        keep = {0} | {int(i) for i in args.variants.split(",")}
-        variants = [v for i, v in enumerate(VARIANTS) if i in keep]
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     for r in runs:
@@ -161,12 +167,16 @@ def main(argv=None) -> int:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    return report(rows, variants, args.out)
+
+
+def report(rows: list[dict], variants, out: Path) -> int:
     summary = summarise(rows, variants)
     text = markdown(summary, sorted({r["run"] for r in rows}))
-    (args.out / "render_tradeoff.md").write_text(text)
-    plot(summary, args.out / "render_tradeoff.png")
+    (out / "render_tradeoff.md").write_text(text)
+    plot(summary, out / "render_tradeoff.png")
     print(text)
-    print(f"wrote {args.out}/render_tradeoff.csv, render_tradeoff.md, render_tradeoff.png")
+    print(f"wrote {out}/render_tradeoff.csv, render_tradeoff.md, render_tradeoff.png")
     return 0
 
 

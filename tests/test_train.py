@@ -770,6 +770,9 @@ def test_render_tradeoff_benchmark_on_a_trained_run(room, tmp_path):
     text = (tmp_path / "o" / "render_tradeoff.md").read_text()
     assert "| base (run's budget, all sets) |" in text and "| 1.00 |" in text and "+0.00" in text
     assert (tmp_path / "o" / "render_tradeoff.png").stat().st_size > 0
+    (tmp_path / "o" / "render_tradeoff.md").unlink()
+    assert brt.main(["--from-csv", "--out", str(tmp_path / "o")]) == 0  # re-summarised from the CSV alone
+    assert (tmp_path / "o" / "render_tradeoff.md").read_text() == text
 
 
 def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, tmp_path, monkeypatch):
