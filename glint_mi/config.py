@@ -169,7 +169,8 @@ class TrainConfig:
     #                                      share of the sampled pixels (mean since L_trans started). Tuning room
     #                                      7301 at 256 hits, realistic priors: 0.41 % with its glass case, 0.03 %
     #                                      for the same room rendered without the glass (docs/decisions.md)
-    auto_contrib_min: float = 0.005      # prune a set whose share of the image energy stays below this
+    auto_contrib_min: float = 0.005      # drop the reflection set if its share of the image energy is below this
+    #                                      (the transmission set: its mask alone, auto_trans_min)
     no_glass: str = "3dgs"               # when components: auto drops both secondary sets before training (no glass
     #                                      cue), the interface alone is a radiance field: 3dgs = train it exactly as
     #                                      the 3dgs method does (3D Gaussians, its loss weights 0.8 / 0.2, no
