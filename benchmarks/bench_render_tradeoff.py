@@ -29,7 +29,7 @@ import glint_mi  # noqa: E402
 
 glint_mi.set_variant()
 
-from glint_mi.evaluate import evaluate, load_run  # noqa: E402
+from glint_mi.evaluate import evaluate, load_model, load_run  # noqa: E402
 from glint_mi.tradeoff import pareto  # noqa: E402
 from glint_mi.train import eval_options  # noqa: E402
 
@@ -59,12 +59,14 @@ def measure(run: Path, variants, reps: int) -> list[dict]:
     rows = []
     fps = {v[0]: [] for v in variants}
     metrics = {}
+    _, ds, cfg, _ = load_run(run)  # the dataset once; each variant builds its integrator from the run's sets
+    opts = eval_options(cfg, ds.root)
     for rep in range(reps):
         for name, hits, comps, traversal in variants:
-            integ, ds, cfg, _ = load_run(run, max_hits=hits, components=comps)
+            integ = load_model(run, cfg, max_hits=hits, components=comps)
             if traversal == "bvh":
                 integ.kbuffer = False  # Mitsuba's queries, as on CUDA (the same image model)
-            res = evaluate(integ, ds.test_views, write=False, **eval_options(cfg, ds.root))
+            res = evaluate(integ, ds.test_views, write=False, **opts)
             if rep > 0 or reps == 1:
                 fps[name].append(res["fps"])
             metrics[name] = res["metrics"]  # the same images every repetition (deterministic renders)

@@ -184,34 +184,42 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
 
 def load_run(run: str | Path, full: bool = False, max_hits: int | None = None, components: str = "all"):
     """(integrator, dataset, config, train_s) of a finished run folder (its ``model/``); the dataset at the
-    training resolution, or with ``full`` at its full resolution; ``max_hits`` replaces the run's hit budget;
-    ``components`` is the integrator's (``all``: the exact first-order model; ``auto`` or a comma list of sets trade
-    accuracy for speed, see ``benchmarks/bench_render_tradeoff.py``)."""
-    import glint_mi
-
+    training resolution, or with ``full`` at its full resolution; ``max_hits`` and ``components`` as in
+    :func:`load_model`."""
     from .config import TrainConfig
-    from .conventions import ROLES
-    from .examples import gaussian_scene_dict
-    from .gaussians import GaussianSet
     from .runs import RunError, load_run_dataset
 
     run = Path(run)
-    model = run / "model"
-    if not (run / "config.json").exists() or not model.exists():
+    if not (run / "config.json").exists() or not (run / "model").exists():
         raise RunError(f"{run}: not a finished run (needs config.json and model/); train with "
                        f"`python -m glint_mi.optimize scene.xml --out {run}`.")
     cfg = TrainConfig.load(run / "config.json")
     ds = load_run_dataset(run, cfg, full=full or cfg.eval_full)
+    ckpt = run / "checkpoint.npz"
+    train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None
+    return load_model(run, cfg, max_hits, components), ds, cfg, train_s
+
+
+def load_model(run: str | Path, cfg, max_hits: int | None = None, components: str = "all"):
+    """The glint integrator holding a finished run's trained sets (``RUN/model/*.ply``), configured as ``cfg`` (the
+    run's) except for ``max_hits`` (replaces the run's hit budget) and ``components`` (``all``: the exact
+    first-order model; ``auto`` or a comma list of sets trade accuracy for speed, see
+    ``benchmarks/bench_render_tradeoff.py``)."""
+    import glint_mi
+
+    from .conventions import ROLES
+    from .examples import gaussian_scene_dict
+    from .gaussians import GaussianSet
+
     glint_mi.set_variant()
     import mitsuba as mi
 
+    model = Path(run) / "model"
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
     budget = cfg.max_hits if max_hits is None else max_hits
     scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components=components,
                                              max_order=cfg.max_order, max_hits=budget, blend=cfg.blend))
-    ckpt = run / "checkpoint.npz"
-    train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None
-    return scene.integrator(), ds, cfg, train_s
+    return scene.integrator()
 
 
 def main(argv=None) -> int:

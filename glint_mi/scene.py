@@ -226,9 +226,11 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
         source = "triangulated"
         try:
             tmp.rename(folder)
-        except OSError:  # another process cached it first: use its points, so that every run shares one cloud
-            import shutil                                 # (SIFT matching is multi-threaded: two triangulations of
-                                                          # the same images differ by a few points)
+        except OSError:
+            # another run cached its points first: use them, so that every run starts from one cloud (SIFT
+            # matching is multi-threaded, and two triangulations of the same images differ by a few points)
+            import shutil
+
             from .data.colmap import read_text
 
             shutil.rmtree(tmp, ignore_errors=True)
@@ -237,7 +239,8 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
         rep = {"source": source, "points": int(len(xyz)), "cache": str(folder),
                "seconds": round(time.perf_counter() - t0, 1), **stats}
         log(f"SfM (pycolmap, known poses): {stats['points3D']} points, {stats['mean_reprojection_error_px']:.2f} px "
-            f"in {rep['seconds']:.0f} s")
+            f"in {rep['seconds']:.0f} s" + ("" if source == "triangulated" else
+                                             f"; another run cached {len(xyz)} points first, those are used"))
     ds.sparse, ds.tracks_distorted = folder, False  # its tracks feed the L_trans see-through cue
     return xyz, rgb, rep
 

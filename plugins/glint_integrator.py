@@ -77,7 +77,7 @@ and the same transport as a first-order reference on mesh scenes with real glass
    - |int|
    - Shell entries listed per traversal (a round); rays still going take another round. Any size gives the same
      image; the default lists the whole hit budget in one round (each further round re-traverses the BVH and traces
-     another compositing kernel: 64 at a 256-hit budget made training steps 1.26x slower), capped so that a round's
+     another compositing kernel: 64 at a 256-hit budget made training steps 1.18-1.29x slower), capped so that a round's
      buffers stay under 256 MiB (12 bytes per ray and entry). (Default: ``max_hits``)
  * - max_depth
    - |int|
