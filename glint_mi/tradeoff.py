@@ -127,3 +127,44 @@ def mesh_reference_trade(spps=(4, 16, 64), ref_spp: int = 1024, width: int = 48,
             rows.append({"renderer": name, "max_depth": integ["max_depth"], "spp": spp, "seconds": dt,
                          "rel_error": err})
     return rows
+
+
+def summarise(rows: list[dict], base: str = "base",
+              keys=("psnr", "ssim", "normal_mae", "absrel", "t_iou", "train_s", "fps")) -> list[dict]:
+    """One row per (group, variant) over every (room, seed) it was trained on: the mean and min/max of ``keys``,
+    and the change against ``base`` trained on the same room with the same seed (paired: the room-to-room spread,
+    which dwarfs most variants' effect, cancels). A variant without a base on its room (another room, e.g. the
+    glass-free twin) has no deltas."""
+    by_run = {(r["room"], r["seed"]): r for r in rows if r["variant"] == base}
+    out, order = {}, []
+    for r in rows:
+        k = (r["group"], r["variant"])
+        if k not in out:
+            out[k] = []
+            order.append(k)
+        out[k].append(r)
+    summ = []
+    for k in order:
+        sel = out[k]
+        s = {"group": k[0], "variant": k[1], "runs": len(sel)}
+        for q in keys:
+            v = np.array([_num(r.get(q)) for r in sel], float)
+            s[q] = float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
+            s[q + "_min"] = float(np.nanmin(v)) if np.isfinite(v).any() else float("nan")
+            s[q + "_max"] = float(np.nanmax(v)) if np.isfinite(v).any() else float("nan")
+            pairs = [_num(r.get(q)) - _num(by_run[(r["room"], r["seed"])].get(q)) for r in sel
+                     if (r["room"], r["seed"]) in by_run]
+            d = np.array(pairs, float)
+            ok = np.isfinite(d).any()
+            s["d_" + q] = float(np.nanmean(d)) if ok else float("nan")
+            s["d_" + q + "_min"] = float(np.nanmin(d)) if ok else float("nan")
+            s["d_" + q + "_max"] = float(np.nanmax(d)) if ok else float("nan")
+        summ.append(s)
+    return summ
+
+
+def _num(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")

@@ -114,13 +114,33 @@ def test_tradeoff_script_tiny(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     rows = list(csv.DictReader(open(tmp_path / "training.csv")))
     by = {x["variant"]: x for x in rows}
-    assert set(by) >= {"iters x0.5", "iters x1", "train 1/1 res", "train 1/2 res"}
-    # the base configuration appears in both groups and is trained once
-    assert by["train 1/1 res"]["trained_as"] == "iters x1" and by["train 1/1 res"]["psnr"] == by["iters x1"]["psnr"]
+    assert set(by) >= {"base", "iters x0.5", "iters x1", "train 1/1 res", "train 1/2 res"}
+    # the base configuration appears in both groups and is trained once, first
+    for v in ("iters x1", "train 1/1 res"):
+        assert by[v]["trained_as"] == "base" and by[v]["psnr"] == by["base"]["psnr"]
     assert by["train 1/2 res"]["trained_as"] == "train 1/2 res"
-    assert not (tmp_path / "runs" / "resolution" / "train_1_1_res").exists()
+    runs = tmp_path / "runs" / "glass_room" / "seed0"
+    assert (runs / "base" / "metrics.json").exists() and not (runs / "resolution" / "train_1_1_res").exists()
     md = (tmp_path / "tradeoff.md").read_text()
     assert (tmp_path / "tradeoff.png").exists() and "glint mesh mode" in md and "| path | 3 |" in md
+    assert md.count("| iters x1 |") == 0  # a reused run is not a row of its own in the summary
+
+
+def test_tradeoff_summary_pairs_each_variant_with_its_own_base():
+    """The change against the base is taken per (room, seed) - the room-to-room spread cancels - and a variant on a
+    room without a base run (the glass-free twin) gets no change."""
+    from glint_mi.tradeoff import summarise
+
+    rows = [{"group": "base", "variant": "base", "room": "a", "seed": 0, "psnr": 30.0, "train_s": 100.0},
+            {"group": "base", "variant": "base", "room": "b", "seed": 0, "psnr": 20.0, "train_s": 50.0},
+            {"group": "g", "variant": "v", "room": "a", "seed": 0, "psnr": 29.0, "train_s": 50.0},
+            {"group": "g", "variant": "v", "room": "b", "seed": 0, "psnr": 21.0, "train_s": "25"},
+            {"group": "ng", "variant": "w", "room": "c", "seed": 0, "psnr": 10.0, "train_s": 1.0}]
+    s = {x["variant"]: x for x in summarise(rows, keys=("psnr", "train_s"))}
+    assert s["v"]["runs"] == 2 and s["v"]["psnr"] == 25.0 and (s["v"]["psnr_min"], s["v"]["psnr_max"]) == (21, 29)
+    assert s["v"]["d_psnr"] == 0.0 and (s["v"]["d_psnr_min"], s["v"]["d_psnr_max"]) == (-1.0, 1.0)
+    assert s["v"]["d_train_s"] == -37.5 and s["base"]["d_psnr"] == 0.0
+    assert s["w"]["d_psnr"] != s["w"]["d_psnr"] and s["w"]["psnr"] == 10.0
 
 
 def test_benchmark_on_a_local_ray_instance(tmp_path):
