@@ -775,6 +775,29 @@ def test_render_tradeoff_benchmark_on_a_trained_run(room, tmp_path):
     assert (tmp_path / "o" / "render_tradeoff.md").read_text() == text
 
 
+def test_list_use_counts_listed_and_composited_entries(room, tmp_path):
+    """benchmarks/list_use.py: per set, the native lists' entries and the hits composited from them; a hit budget of
+    2 composites fewer, and lists fewer (the k-buffer holds the budget)."""
+    import sys as _sys
+
+    _sys.path.insert(0, str(ROOT / "benchmarks"))
+    import list_use
+
+    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=4, patches=4, components="all"),
+                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    tr.train(progress=False)
+    full = list_use.count_lists(tmp_path / "run", views=1)
+    assert set(full) == {"interface", "transmission", "reflection"}, full
+    for s in full.values():
+        assert 0 < s["composited"] <= s["listed"] and s["rounds"] >= 1, full
+    cfg = json.loads((tmp_path / "run" / "config.json").read_text())
+    cfg["max_hits"] = 2
+    (tmp_path / "run" / "config.json").write_text(json.dumps(cfg))
+    cut = list_use.count_lists(tmp_path / "run", views=1)
+    assert cut["interface"]["composited"] < full["interface"]["composited"], (cut, full)
+    assert cut["interface"]["listed"] < full["interface"]["listed"], (cut, full)
+
+
 def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, tmp_path, monkeypatch):
     """Two runs triangulating the same capture at once (a benchmark's parallel lanes): the one whose cache write
     loses uses the winner's cached points, so every run starts from one point cloud (SIFT matching is multi-threaded
