@@ -10,18 +10,19 @@ import numpy as np
 
 def glass_cue_check(self) -> None:  # self: the Trainer
     """Before training: the transmission set needs a glass cue to learn from: an albedo prior (the paper's
-    masks) or the SfM see-through cue against an aligned depth prior. Without either (no priors: a phone
-    capture) L_trans has only the paper's depth gap between two sets that fit the same surfaces, which turns
-    an opaque room into glass (the fox: 92 % of the wallpaper 'behind' when L_trans starts): the set is
-    dropped before training, with the reflection set (what glass would mirror), and the run says so."""
+    masks: dark albedo, bright interface, the transmission set behind), or, with ``trans_cue: auto``, the SfM
+    see-through cue against an aligned depth prior. Without one (no priors: a phone capture) L_trans has only the
+    depth gap between two sets that fit the same surfaces, which turns an opaque room into glass (the fox: 92 % of
+    the wallpaper 'behind' when L_trans starts): the set is dropped before training, with the reflection set (what
+    glass would mirror), and the run says so."""
     c = self.cfg
-    if c.components != "auto" or "transmission" not in self.sets or c.trans_cue == "none" \
-            or c.trans_masks in ("gt", "prior"):
+    if c.components != "auto" or "transmission" not in self.sets or c.trans_masks in ("gt", "prior"):
         return
-    if "albedo" in self.bank.has or self.bank.cue is not None:
+    if "albedo" in self.bank.has or (c.trans_cue == "auto" and self.bank.cue is not None):
         return
-    why = ("no glass cue: no albedo prior and no depth prior aligned to SfM tracks, so L_trans could only "
-           "compare two sets that fit the same surfaces (trans_cue: none keeps the paper's depth-gap rule)")
+    why = ("no glass cue: no albedo prior" + (" and no depth prior aligned to SfM tracks" if c.trans_cue == "auto"
+                                              else " (trans_cue: auto adds the SfM see-through cue of a depth prior)")
+           + ", so L_trans could only compare two sets that fit the same surfaces (components: all keeps them)")
     drops = {"transmission": why}
     if "reflection" in self.sets:  # what the glass would mirror: no glass, no reflection set (decide)
         drops["reflection"] = "no glass (the transmission set is dropped): a diffuse surface's Fresnel floor is its " \

@@ -112,15 +112,17 @@ class TrainConfig:
     #                                      (the paper); interface = 1 - t where the interface is a surface (measured
     #                                      on a room without albedo prior: it also pulls G_trans off the glass, the
     #                                      transparent mask shrinks to 0.3 % and components: auto drops G_trans)
-    trans_cue: str = "auto"              # L_trans's 3D cue from the SfM tracks (RayBank.see_through_cue): transparent
-    #                                      only near features seen behind the SfM-aligned depth prior, opaque near
-    #                                      features on it. auto: with a transmission set, COLMAP tracks and a depth
-    #                                      prior, else the paper's depth gap when there is an albedo prior; with
-    #                                      neither (no priors) components: auto drops the transmission set (the
-    #                                      depth gap of two sets fitting one surface is no glass cue: on the fox it
-    #                                      called 92 % of the wallpaper glass). none: the paper's masks. With an
-    #                                      albedo prior the cue replaces only the depth gap (tuning room 7301: t IoU
-    #                                      0.28 -> 0.54, t off glass 0.11 -> 0.18)
+    trans_cue: str = "auto"              # L_trans's masks: auto = glint_mi's 3D cue from the SfM tracks
+    #                                      (RayBank.see_through_cue) in place of the paper's depth gap D_T - D_I:
+    #                                      transparent only near features seen behind the SfM-aligned depth prior,
+    #                                      opaque near features on it (with an albedo prior its votes stay); none =
+    #                                      the paper's masks. Without an albedo prior (and, for auto, without the cue)
+    #                                      components: auto drops the transmission set (the depth gap of two sets
+    #                                      fitting one surface is no glass cue: on the fox it called 92 % of the
+    #                                      wallpaper glass). Tuning room 7301 (realistic priors, 256 hits, two seeds,
+    #                                      components: all): none finds more glass (t IoU 0.38 against 0.29), but its
+    #                                      masks keep the transmission set of the glass-free twin under components:
+    #                                      auto (0.16 % of pixels, threshold 0.1 %; auto: 0.03 %): docs/decisions.md
     t_raise: str = "masks"               # where the objective may raise t: masks = from the end of densification,
     #                                      not where L_trans's opaque mask votes (which votes: t_gate_votes;
     #                                      glint_mi's: off glass a blend of c_I and c_T, two fits of the same

@@ -704,6 +704,29 @@ def test_hit_budget_share_is_measured_and_warned(rng):
     assert not said and fake.report["hit_budget"]["budget_full_last_tenth"] == pytest.approx(0.01)
 
 
+@pytest.mark.parametrize("trans_cue,albedo,cue,kept", [
+    ("none", True, False, True), ("none", False, False, False), ("none", False, True, False),
+    ("auto", True, False, True), ("auto", False, True, True), ("auto", False, False, False)])
+def test_glass_cue_rule(trans_cue, albedo, cue, kept):
+    """components: auto keeps the transmission set before training only with a glass cue its L_trans reads: an albedo
+    prior (the paper's masks), or with trans_cue auto (the default) also the SfM see-through cue; the paper's depth
+    gap alone (no priors: a phone capture) is none, whatever trans_cue says (until 2026-11-25 trans_cue none skipped
+    the check)."""
+    from types import SimpleNamespace
+
+    from glint_mi import components
+
+    cfg = TrainConfig.for_preset("tiny", components="auto", trans_cue=trans_cue, no_glass="glint")
+    fake = SimpleNamespace(cfg=cfg, sets={"interface": [0], "transmission": [0, 1], "reflection": [0]},
+                           bank=SimpleNamespace(has={"depth", "normal"} | ({"albedo"} if albedo else set()),
+                                                cue=np.zeros(4, np.int8) if cue else None),
+                           report={"components": {}}, dropped={}, log=lambda *a: None)
+    components.glass_cue_check(fake)
+    assert ("transmission" in fake.sets) == kept and ("reflection" in fake.sets) == kept
+    if not kept:
+        assert "no albedo prior" in fake.report["components"]["transmission"]["why"]
+
+
 @pytest.mark.parametrize("profile", ["3dgs", "3dgs+sfm"])
 def test_glint_without_a_glass_cue_trains_as_3dgs(room, tmp_path, profile):
     """GLINT contains 3DGS: without priors (no glass cue) both extra sets are dropped and the resolved training
