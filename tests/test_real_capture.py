@@ -95,6 +95,24 @@ def test_undistorted_views_see_the_pinhole_image(tmp_path, frame_intrinsics):
     logs.clear()
     again = load_dataset(tmp_path / "cap", log=logs.append)
     assert not logs and np.allclose(again.views[1].K, v.K)
+    if frame_intrinsics:
+        return
+    # the cache is keyed by the images' contents: a copy elsewhere with new file times reads it; changed bytes miss it
+    import shutil
+    import time
+
+    time.sleep(0.01)
+    shutil.copytree(tmp_path / "cap", tmp_path / "copy")  # copytree keeps times; touch them all
+    for f in (tmp_path / "copy" / "images").iterdir():
+        os.utime(f)
+    copied = load_dataset(tmp_path / "copy", log=logs.append)
+    assert not logs and copied.views[1].image_path == v.image_path
+    f1 = tmp_path / "copy" / "images" / "f1.png"
+    raw_copy = np.asarray(__import__("PIL.Image", fromlist=["Image"]).open(f1)).copy()
+    raw_copy[0, 0] ^= 1
+    __import__("PIL.Image", fromlist=["Image"]).fromarray(raw_copy).save(f1)
+    load_dataset(tmp_path / "copy", log=logs.append)
+    assert any("undistorting 3 images" in m for m in logs)
 
 
 def test_missing_and_broken_frames_are_named(tmp_path):

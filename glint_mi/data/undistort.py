@@ -1,8 +1,8 @@
 """Undistortion of real captures, once, into a cache: COLMAP's undistorter (through pycolmap) turns every frame of a
 distorted camera (OPENCV, fisheye, radial, ...) into a pinhole image, which the ray tracer can use.
 
-The cache lives under ``$GLINT_CACHE`` (default ``~/.cache/glint_mi``), keyed by the images (path, size, time) and
-the cameras, so a dataset folder can be read-only; a second run finds the undistorted images there. The folder is
+The cache lives under ``$GLINT_CACHE`` (default ``~/.cache/glint_mi``), keyed by the images' contents and
+the cameras (a copied or re-synced capture, whose files have new paths or times, still finds its cache), so a dataset folder can be read-only; a second run finds the undistorted images there. The folder is
 written under a temporary name and renamed when complete (an interrupted run leaves nothing half-written).
 """
 from __future__ import annotations
@@ -26,9 +26,22 @@ def cache_root() -> Path:
     return Path(os.environ.get("GLINT_CACHE") or Path.home() / ".cache" / "glint_mi")
 
 
+_content_keys: dict[tuple, str] = {}  # (resolved path, size, mtime) -> content hash, within one process
+
+
 def file_key(path: Path) -> str:
-    st = Path(path).stat()
-    return f"{Path(path).resolve()}:{st.st_size}:{st.st_mtime_ns}"
+    """A file's cache key: the SHA-1 of its bytes. Paths and modification times are not part of it: a capture copied
+    elsewhere, or re-synced with new times, keeps its undistortion and SfM caches (it did not, when they were)."""
+    path = Path(path).resolve()
+    st = path.stat()
+    memo = (str(path), st.st_size, st.st_mtime_ns)
+    if memo not in _content_keys:
+        h = hashlib.sha1()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        _content_keys[memo] = f"{st.st_size}:{h.hexdigest()}"
+    return _content_keys[memo]
 
 
 def digest(*parts) -> str:
