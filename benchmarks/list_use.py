@@ -34,7 +34,8 @@ def count_lists(run: Path, views: int = 2) -> dict:
     _, ds, cfg, _ = load_run(run)
     integ = load_model(run, cfg)
     if not integ.kbuffer:
-        raise SystemExit(f"{run}: the native k-buffer traversal is unavailable here (build it: python -m glint_mi.native)")
+        raise SystemExit(f"{run}: the native k-buffer traversal is unavailable here "
+                         f"(build it: python -m glint_mi.native)")
     stats: dict[str, dict] = {}
     role = [None]
     query0, march0 = native.ShellSet.query, march._march_kbuffer
@@ -72,7 +73,8 @@ def main(argv=None) -> int:
     for r, s in stats.items():
         tot[0] += s["listed"]
         tot[1] += s["composited"]
-        print(f"| {r} | {s['rounds']} | {s['listed']} | {s['composited']} | {s['composited'] / max(1, s['listed']):.3f} |")
+        used = s["composited"] / max(1, s["listed"])
+        print(f"| {r} | {s['rounds']} | {s['listed']} | {s['composited']} | {used:.3f} |")
     print(f"| all | | {tot[0]} | {tot[1]} | {tot[1] / max(1, tot[0]):.3f} |")
     return 0
 

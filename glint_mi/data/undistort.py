@@ -1,9 +1,10 @@
 """Undistortion of real captures, once, into a cache: COLMAP's undistorter (through pycolmap) turns every frame of a
 distorted camera (OPENCV, fisheye, radial, ...) into a pinhole image, which the ray tracer can use.
 
-The cache lives under ``$GLINT_CACHE`` (default ``~/.cache/glint_mi``), keyed by the images' contents and
-the cameras (a copied or re-synced capture, whose files have new paths or times, still finds its cache), so a dataset folder can be read-only; a second run finds the undistorted images there. The folder is
-written under a temporary name and renamed when complete (an interrupted run leaves nothing half-written).
+The cache lives under ``$GLINT_CACHE`` (default ``~/.cache/glint_mi``), keyed by the images' contents and the
+cameras, so a dataset folder can be read-only; a second run finds the undistorted images there, and so does a copy
+of the capture elsewhere or one re-synced with new file times. The folder is written under a temporary name and
+renamed when complete (an interrupted run leaves nothing half-written).
 """
 from __future__ import annotations
 
