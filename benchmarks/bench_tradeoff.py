@@ -36,7 +36,7 @@ import glint_mi  # noqa: E402
 glint_mi.set_variant()
 
 from glint_mi.scene import scene_xml  # noqa: E402
-from glint_mi.tradeoff import (GRID, NO_GLASS, _num, mesh_reference_trade, pareto, run_variants,  # noqa: E402
+from glint_mi.tradeoff import (GRID, NO_GLASS, as_number, mesh_reference_trade, pareto, run_variants,  # noqa: E402
                               summarise)
 
 NO_GLASS_GROUP = "components (no glass)"  # another room: its own Pareto front
@@ -86,7 +86,7 @@ def _fmt(v, nd=4):
 
 
 def write_outputs(rows, out: Path, mesh=None) -> str:
-    """training.csv (unless it is the input), tradeoff.md and tradeoff.png from the per-run rows."""
+    """tradeoff.md and tradeoff.png from the per-run rows (those of training.csv); returns the markdown."""
     rows = [r for r in rows if r.get("trained_as", r["variant"]) == r["variant"]]  # a reused run: its own row
     summ = summarise(rows)
     flags = pareto([r for r in summ if r["group"] != NO_GLASS_GROUP])
@@ -100,9 +100,9 @@ def write_outputs(rows, out: Path, mesh=None) -> str:
              "| group | variant | runs | PSNR | d PSNR | normal MAE | d normal | AbsRel | t IoU | d t IoU | train min "
              "| x base time | fps | Pareto (time vs PSNR) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    base_t = {(r["room"], r["seed"]): _num(r["train_s"]) for r in rows if r["variant"] == "base"}
+    base_t = {(r["room"], r["seed"]): as_number(r["train_s"]) for r in rows if r["variant"] == "base"}
     for s in summ:
-        ratio = [_num(r["train_s"]) / base_t[(r["room"], r["seed"])] for r in rows
+        ratio = [as_number(r["train_s"]) / base_t[(r["room"], r["seed"])] for r in rows
                  if (r["group"], r["variant"]) == (s["group"], s["variant"]) and (r["room"], r["seed"]) in base_t]
         rng = lambda q, nd=4: (f"{_fmt(s[q], nd)} ({_fmt(s[q + '_min'], nd)} to {_fmt(s[q + '_max'], nd)})"
                                if s["runs"] > 1 and s[q] == s[q] else _fmt(s[q], nd))
@@ -170,11 +170,14 @@ def main(argv=None) -> int:
     rooms = [(d, _room_name(d)) for d in args.data]
     if len({n for _, n in rooms}) != len(rooms):
         ap.error("--data: two rooms share a folder name; the runs are kept by that name")
+    xmls = {}
+    for data, room in rooms + ([(args.no_glass_data, _room_name(args.no_glass_data))] if args.no_glass_data else []):
+        xmls[room] = args.out / "scenes" / f"{room}.xml"
+        xmls[room].parent.mkdir(parents=True, exist_ok=True)
+        xmls[room].write_text(scene_xml(data))
     for seed in range(args.seeds):
         for data, room in rooms:
-            xml = args.out / "scenes" / f"{room}.xml"
-            xml.parent.mkdir(parents=True, exist_ok=True)
-            xml.write_text(scene_xml(data))
+            xml = xmls[room]
             runs = args.out / "runs" / room / f"seed{seed}"
             todo = [("base", {"base": {}})] + [
                 (g, {k: v for k, v in GRID[g].items() if wanted is None or k in wanted}) for g in groups]
@@ -184,9 +187,7 @@ def main(argv=None) -> int:
                     rows.append({"group": g, "room": room, "seed": seed, **r})
             if args.no_glass_data:
                 ng = _room_name(args.no_glass_data)
-                xml_ng = args.out / "scenes" / f"{ng}.xml"
-                xml_ng.write_text(scene_xml(args.no_glass_data))
-                for r in run_variants(xml_ng, args.out / "runs" / ng / f"seed{seed}", NO_GLASS, args.preset,
+                for r in run_variants(xmls[ng], args.out / "runs" / ng / f"seed{seed}", NO_GLASS, args.preset,
                                       seen=seen, seed=seed, **base):
                     rows.append({"group": NO_GLASS_GROUP, "room": ng, "seed": seed, **r})
     with open(args.out / "training.csv", "w", newline="") as f:

@@ -148,22 +148,24 @@ def summarise(rows: list[dict], base: str = "base",
         sel = out[k]
         s = {"group": k[0], "variant": k[1], "runs": len(sel)}
         for q in keys:
-            v = np.array([_num(r.get(q)) for r in sel], float)
-            s[q] = float(np.nanmean(v)) if np.isfinite(v).any() else float("nan")
-            s[q + "_min"] = float(np.nanmin(v)) if np.isfinite(v).any() else float("nan")
-            s[q + "_max"] = float(np.nanmax(v)) if np.isfinite(v).any() else float("nan")
-            pairs = [_num(r.get(q)) - _num(by_run[(r["room"], r["seed"])].get(q)) for r in sel
-                     if (r["room"], r["seed"]) in by_run]
-            d = np.array(pairs, float)
-            ok = np.isfinite(d).any()
-            s["d_" + q] = float(np.nanmean(d)) if ok else float("nan")
-            s["d_" + q + "_min"] = float(np.nanmin(d)) if ok else float("nan")
-            s["d_" + q + "_max"] = float(np.nanmax(d)) if ok else float("nan")
+            s.update(_spread(q, [as_number(r.get(q)) for r in sel]))
+            s.update(_spread("d_" + q, [as_number(r.get(q)) - as_number(by_run[(r["room"], r["seed"])].get(q))
+                                        for r in sel if (r["room"], r["seed"]) in by_run]))
         summ.append(s)
     return summ
 
 
-def _num(v) -> float:
+def _spread(name: str, values: list[float]) -> dict:
+    """{name, name_min, name_max}: mean, min and max of the finite values (nan when there are none)."""
+    v = np.array(values, float)
+    v = v[np.isfinite(v)]
+    if not len(v):
+        return {name: float("nan"), name + "_min": float("nan"), name + "_max": float("nan")}
+    return {name: float(v.mean()), name + "_min": float(v.min()), name + "_max": float(v.max())}
+
+
+def as_number(v) -> float:
+    """A CSV cell or a metric as a float (nan when it is none)."""
     try:
         return float(v)
     except (TypeError, ValueError):
