@@ -6,8 +6,8 @@
 
 ``--data`` holds generated scenes (``python -m glint_mi.dataset make``; ``--make-data N`` generates N there first).
 One run per method x scene (x seed: ``--seeds N``, runs ``<method>@seed<k>`` for k > 0) under
-``OUT/runs/<scene>/<method>``; a run with a ``metrics.json`` is skipped and an
-interrupted one resumes from its checkpoint, so the benchmark can be stopped and restarted. Writes ``OUT/results.csv``,
+``OUT/runs/<scene>/<method>``; a finished run is skipped, an interrupted one resumes from its checkpoint (an
+interrupted evaluation is done again), so the benchmark can be stopped and restarted. Writes ``OUT/results.csv``,
 ``OUT/table.md`` (the paper's columns per scene and the mean, plus SSIM, glass-only MAE/AbsRel, transparency IoU)
 and ``OUT/figures/<scene>.png`` (per-method renders of the first test view side by side).
 """
@@ -96,10 +96,12 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
     """Train (or resume, or skip when finished) one method on one scene and evaluate it; returns the metrics."""
     from .evaluate import evaluate
     from .scene import read_scene, scene_xml
+    from .runs import finished_metrics, train_unless_done
     from .train import Trainer
 
-    if (run / "metrics.json").exists():
-        return json.loads((run / "metrics.json").read_text())
+    done = finished_metrics(run)
+    if done is not None:
+        return done
     if method == PRIORS_ROW:
         return score_priors(scene_dir, run)
     cfg = config_for(method, preset, variant, **extra)
@@ -112,7 +114,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
         trainer = Trainer(run, cfg, scene=read_scene(xml), log=log)
     (run / "method.json").write_text(json.dumps({"method": method, "overrides": METHODS[method].overrides,
                                                  "differs": METHODS[method].differs}, indent=1))
-    res = trainer.train(progress=False)
+    res = train_unless_done(trainer)
     out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"], **trainer.eval_options())
     return {k: v for k, v in out.items() if k not in ("per_view", "renders")}
 

@@ -47,3 +47,22 @@ def load_run_dataset(run_dir: Path, cfg, full: bool = False, log=None):
     if info.get("sparse"):  # the SfM model the run triangulated (its tracks feed the see-through cue)
         ds.sparse, ds.tracks_distorted = Path(info["sparse"]), bool(info.get("tracks_distorted"))
     return ds
+
+
+def finished_metrics(run: Path) -> dict | None:
+    """A run's ``metrics.json`` when its evaluation finished; None when there is none or it was interrupted (the
+    evaluation writes ``metrics.json`` after every view with ``"interrupted": true`` until the last one, so a
+    killed evaluation leaves the mean of the views it reached: it must be evaluated again, not read as done)."""
+    path = Path(run) / "metrics.json"
+    if not path.exists():
+        return None
+    res = json.loads(path.read_text())
+    return None if res.get("interrupted") else res
+
+
+def train_unless_done(trainer) -> dict:
+    """``trainer.train()`` unless its checkpoint already holds the whole schedule (its evaluation was what was
+    interrupted): then the training seconds are the checkpoint's and nothing is trained or logged again."""
+    if trainer.it >= trainer.cfg.iterations:
+        return {"iterations": trainer.it, "train_s": trainer.elapsed}
+    return trainer.train(progress=False)

@@ -62,6 +62,7 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
     """
     from .config import TrainConfig
     from .evaluate import evaluate
+    from .runs import finished_metrics, train_unless_done
     from .scene import read_scene
     from .train import Trainer
 
@@ -70,18 +71,17 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
     seen = {} if seen is None else seen
     for name, ov in variants.items():
         run = Path(out) / name.replace(" ", "_").replace("+", "plus").replace("/", "_")
-        done = run / "metrics.json"
         cfg = TrainConfig.for_preset(preset, **{**base, **_overrides(base_cfg, ov)})
         key = (str(scene_xml), json.dumps(dataclasses.asdict(cfg), sort_keys=True))
         res, trained_as = seen.get(key, (None, name))
-        if res is None and done.exists():
-            res = json.loads(done.read_text())
+        if res is None:
+            res = finished_metrics(run)
         elif res is None:
             if (run / "checkpoint.npz").exists():
                 tr = Trainer(run, cfg, resume=True, log=lambda *a: None)
             else:
                 tr = Trainer(run, cfg, scene=read_scene(scene_xml), log=lambda *a: None)
-            r = tr.train(progress=False)
+            r = train_unless_done(tr)
             res = evaluate(tr.integ_for_eval(), tr.eval_views(), run, r["train_s"], **tr.eval_options())
             res = {k: v for k, v in res.items() if k not in ("per_view", "renders")}
             log(f"{name}: {r['train_s']:.0f} s, PSNR {res['metrics']['psnr']:.2f}")

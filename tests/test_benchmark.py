@@ -56,6 +56,22 @@ def test_benchmark_tiny(tmp_path):
     r2 = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert r2.returncode == 0
     assert (out / "runs" / "scene_000" / "envgs" / "metrics.json").stat().st_mtime == mtime
+    # an evaluation killed after one view leaves metrics.json marked interrupted: the rerun evaluates that run again
+    # (every view) from its finished checkpoint without training it again, and the CSV holds the full mean
+    run = out / "runs" / "scene_000" / "2dgs"
+    full = json.loads((run / "metrics.json").read_text())
+    part = {**full, "metrics": {**full["metrics"], "psnr": 1.0}, "views": full["views"][:1], "views_done": 1,
+            "interrupted": True}
+    (run / "metrics.json").write_text(json.dumps(part))
+    conv = (run / "convergence.csv").read_text()
+    r3 = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert r3.returncode == 0, r3.stderr[-3000:]
+    again = json.loads((run / "metrics.json").read_text())
+    assert "interrupted" not in again and again["views_done"] == again["views_total"] == full["views_total"]
+    assert abs(again["metrics"]["psnr"] - full["metrics"]["psnr"]) < 0.05 and again["train_s"] == full["train_s"]
+    assert (run / "convergence.csv").read_text() == conv  # not trained again
+    row = next(x for x in csv.DictReader(open(out / "results.csv")) if x["method"] == "2dgs")
+    assert abs(float(row["psnr"]) - full["metrics"]["psnr"]) < 0.05
     bad = subprocess.run(cmd[:-1] + [str(out), "--methods", "nerf"], capture_output=True, text=True, cwd=ROOT)
     assert bad.returncode == 2 and "unknown method" in bad.stderr
 
