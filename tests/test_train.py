@@ -830,6 +830,40 @@ def test_list_use_counts_listed_and_composited_entries(room, tmp_path):
     assert cut["interface"]["listed"] < full["interface"]["listed"], (cut, full)
 
 
+def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
+    """benchmarks/glass_pixels.py: on synthetic glass pixels, the run's and the prior's normal errors, the depth
+    against the pane's and the share behind it, per subset (t > 0.5 and the rest); on a trained and evaluated run
+    it reads the saved renders and counts every glass pixel of the test views once."""
+    import sys as _sys
+
+    _sys.path.insert(0, str(ROOT / "benchmarks"))
+    import glass_pixels
+
+    from glint_mi.evaluate import evaluate
+
+    z = np.array([0.0, 0.0, 1.0])
+    tilt = np.array([np.sin(np.radians(30)), 0.0, np.cos(np.radians(30))])
+    px = {"normal": np.array([z, z, tilt, tilt]), "prior": np.array([tilt, tilt, z, np.zeros(3)]),
+          "gt_normal": np.array([z] * 4), "depth": np.array([1.0, 1.0, 1.5, 1.2]), "gt_depth": np.ones(4),
+          "t": np.array([0.9, 0.6, 0.1, 0.5])}
+    s = glass_pixels.glass_split(px)
+    assert s["t>0.5"]["share"] == 0.5 and s["t<=0.5"]["share"] == 0.5
+    assert s["t>0.5"]["normal"] == pytest.approx(0.0, abs=1e-4) and s["t<=0.5"]["normal"] == pytest.approx(30.0)
+    assert s["t>0.5"]["prior_normal"] == pytest.approx(30.0)  # the pixel without a prior does not count
+    assert s["t<=0.5"]["prior_normal"] == pytest.approx(0.0, abs=1e-4)
+    assert s["t>0.5"]["behind"] == 0.0 and s["t<=0.5"]["behind"] == 1.0
+    assert s["all"]["depth_ratio"] == pytest.approx(1.1)
+    assert s["all"]["normal"] == pytest.approx(15.0)
+    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=2, patches=4, components="all"),
+                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    tr.train(progress=False)
+    evaluate(tr.integ_for_eval(), tr.eval_views(), tmp_path / "run", 0.0, **tr.eval_options())
+    got = glass_pixels.run_pixels(tmp_path / "run")
+    n_glass = sum(int(((v.load_gt()["glass"] > 0.5) & (v.load_gt()["depth"] > 0)).sum()) for v in tr.eval_views())
+    assert n_glass > 0 and all(len(a) == n_glass for a in got.values())
+    assert "| run/run | t>0.5 |" in glass_pixels.table([("run/run", glass_pixels.glass_split(got))])
+
+
 def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, tmp_path, monkeypatch):
     """Two runs triangulating the same capture at once (a benchmark's parallel lanes): the one whose cache write
     loses uses the winner's cached points, so every run starts from one point cloud (SIFT matching is multi-threaded
