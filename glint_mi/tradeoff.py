@@ -76,7 +76,7 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
         res, trained_as = seen.get(key, (None, name))
         if res is None:
             res = finished_metrics(run)
-        elif res is None:
+        if res is None:
             if (run / "checkpoint.npz").exists():
                 tr = Trainer(run, cfg, resume=True, log=lambda *a: None)
             else:

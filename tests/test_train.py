@@ -899,3 +899,24 @@ def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, 
     np.testing.assert_allclose(xyz, winner, atol=1e-5)
     assert (rgb == 7).all() and ds.sparse == folder
     assert not list(folder.parent.glob("0.partial-*"))  # our copy was removed
+
+
+def test_trade_off_variants_resume_finished_and_interrupted_runs(room, tmp_path):
+    """glint_mi.tradeoff.run_variants: a finished variant is read back, not trained; one whose evaluation was killed
+    (metrics.json marked interrupted) is evaluated again from its finished checkpoint, not trained again."""
+    from glint_mi.tradeoff import run_variants
+
+    xml = room.parent / "scene.xml"
+    kw = dict(iterations=4, patches=4, log_every=1000, eval_every=0)
+    first = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
+    run = tmp_path / "o" / "base"
+    ckpt = (run / "checkpoint.npz").stat().st_mtime_ns
+    again = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
+    assert again == first and (run / "checkpoint.npz").stat().st_mtime_ns == ckpt
+    m = json.loads((run / "metrics.json").read_text())
+    (run / "metrics.json").write_text(json.dumps({**m, "metrics": {**m["metrics"], "psnr": 1.0}, "interrupted": True}))
+    redone = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
+    assert redone[0]["psnr"] == pytest.approx(first[0]["psnr"], abs=0.05)
+    assert redone[0]["train_s"] == first[0]["train_s"]
+    assert "interrupted" not in json.loads((run / "metrics.json").read_text())
+    assert (run / "checkpoint.npz").stat().st_mtime_ns == ckpt  # not trained again
