@@ -24,17 +24,12 @@ sys.path.insert(0, str(ROOT))
 SUBSETS = ("all", "t>0.5", "t<=0.5")
 
 
-def angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per-pixel angle in degrees between [N, 3] normals (as :func:`glint_mi.metrics.normal_mae` measures)."""
-    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
-    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
-    return np.degrees(np.arccos(np.clip(np.sum(a * b, -1), -1.0, 1.0)))
-
-
 def glass_split(pixels: dict) -> dict:
     """Summary of concatenated glass pixels ``{"normal", "prior", "gt_normal" [N,3], "depth", "gt_depth", "t" [N]}``:
     per subset (all, t > 0.5, t <= 0.5) the share of the glass pixels, the mean normal error of the run and of the
     prior, the median depth / true depth and the share of pixels more than 10 % behind the pane."""
+    from glint_mi.metrics import angles_deg as angles
+
     t = pixels["t"]
     err = angles(pixels["normal"], pixels["gt_normal"])
     prior_ok = np.linalg.norm(pixels["prior"], axis=-1) > 0.5

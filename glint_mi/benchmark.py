@@ -95,8 +95,8 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
             **extra) -> dict:
     """Train (or resume, or skip when finished) one method on one scene and evaluate it; returns the metrics."""
     from .evaluate import evaluate
-    from .scene import read_scene, scene_xml
     from .runs import finished_metrics, train_unless_done
+    from .scene import read_scene, scene_xml
     from .train import Trainer
 
     done = finished_metrics(run)

@@ -39,10 +39,14 @@ def normal_mae(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> float:
     m = mask & (np.linalg.norm(gt, axis=-1) > 0.5)
     if not m.any():
         return float("nan")
-    p = pred[m] / np.maximum(np.linalg.norm(pred[m], axis=-1, keepdims=True), 1e-12)
-    g = gt[m] / np.linalg.norm(gt[m], axis=-1, keepdims=True)
-    cos = np.clip(np.sum(p * g, axis=-1), -1.0, 1.0)
-    return float(np.degrees(np.arccos(cos)).mean())
+    return float(angles_deg(pred[m], gt[m]).mean())
+
+
+def angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per-pixel angle in degrees between [..., 3] normals (each normalised; a zero vector against a unit one: 90)."""
+    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
+    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
+    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
 
 
 def absrel(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray) -> float:
