@@ -68,12 +68,7 @@ def run_pixels(run: Path) -> dict:
             raise RunError(f"{v.gt_path or v.name}: no ground truth; glass pixels need a generated dataset")
         ch = read_gt_exr(exr)
         g = (gt["glass"] > 0.5) & (gt["depth"] > 0)
-        h, w = bank.sizes[i]
-        if "normal" in bank.has:
-            sl = slice(bank.offsets[i], bank.offsets[i + 1])
-            prior = bank.priors["normal"][sl].reshape(h, w, 3).astype(np.float64) @ bank.axes[i].T
-        else:
-            prior = np.zeros((h, w, 3))
+        prior = bank.prior_normals_world(i)
         acc["normal"].append(np.stack([ch["N.X"], ch["N.Y"], ch["N.Z"]], -1)[g])
         acc["prior"].append(prior[g])
         acc["gt_normal"].append(gt["normal"][g])

@@ -176,6 +176,15 @@ class RayBank:
             z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), np.inf)
         return np.where(pr > 0, z, np.nan)
 
+    def prior_normals_world(self, i: int) -> np.ndarray:
+        """View ``i``'s normal prior as an [H, W, 3] image of world-space normals (float64; 0 where it is invalid or
+        there is no normal prior): the prior is stored in OpenCV camera axes, the metrics compare in world space."""
+        h, w = self.sizes[i]
+        if self.priors.get("normal") is None:
+            return np.zeros((h, w, 3))
+        n_cv = self.priors["normal"][self.offsets[i]:self.offsets[i + 1]].reshape(h, w, 3).astype(np.float64)
+        return n_cv @ self.axes[i].astype(np.float64).T
+
     def fit_depth_to_renders(self, render_depth, max_rays: int = 2048) -> None:
         """depth_align: image — the paper's per-image scale and shift of the depth prior (MonoSDF's closed form),
         fitted over each whole training view: ``render_depth(flat, vid)`` gives the interface's depth and alpha on a

@@ -78,9 +78,7 @@ def score_priors(scene_dir: Path, out: Path | None = None) -> dict:
         z = (P - wq[1]) / wq[0]
         if bank.depth_inverse:
             z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), 0.0)
-        n_cv = bank.priors["normal"][sl].reshape(h, w, 3).astype(np.float64)
-        n_world = n_cv @ bank.axes[i].astype(np.float64).T
-        pred = {"depth": np.where(P > 0, z, 0.0), "normal": n_world, "transparency": np.zeros((h, w))}
+        pred = {"depth": np.where(P > 0, z, 0.0), "normal": bank.prior_normals_world(i), "transparency": np.zeros((h, w))}
         m = M.view_metrics({**pred, "rgb": np.zeros((h, w, 3))}, gt, np.zeros((h, w, 3)))
         per_view[v.name] = {k: m[k] for k in ("normal_mae", "normal_mae_glass", "absrel", "absrel_glass")}
     metrics = {**M.mean_metrics(list(per_view.values())), "fps": float("nan"), "train_s": 0.0}

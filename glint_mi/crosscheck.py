@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .metrics import angles_deg
+
 
 def compare_view(mi_gt: dict, cy: dict, cy_seed1: dict | None, c2w: np.ndarray) -> dict:
     m, c = mi_gt["rgb"], cy["rgb"]
@@ -48,9 +50,7 @@ def compare_view(mi_gt: dict, cy: dict, cy_seed1: dict | None, c2w: np.ndarray) 
     ok = valid & (np.linalg.norm(nm, axis=-1) > 0.5) & (np.linalg.norm(nc, axis=-1) > 0.5)
     # face both towards the camera (the forward axis is a fine proxy for the ray at these fields of view)
     flip = lambda n: np.where((np.sum(n * fwd, -1) > 0)[..., None], -n, n)
-    a, b = flip(nm)[ok], flip(nc)[ok]
-    b = b / np.linalg.norm(b, axis=-1, keepdims=True)
-    ang = np.degrees(np.arccos(np.clip(np.sum(a * b, -1), -1, 1)))
+    ang = angles_deg(flip(nm)[ok], flip(nc)[ok])
     out["normal_mean_angle_deg"] = float(ang.mean()) if ok.any() else float("nan")
     gm, gc = mi_gt["glass"] > 0.5, cy["glass"] > 0.5
     union = np.sum(gm | gc)

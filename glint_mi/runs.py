@@ -61,8 +61,10 @@ def finished_metrics(run: Path) -> dict | None:
 
 
 def train_unless_done(trainer) -> dict:
-    """``trainer.train()`` unless its checkpoint already holds the whole schedule (its evaluation was what was
-    interrupted): then the training seconds are the checkpoint's and nothing is trained or logged again."""
-    if trainer.it >= trainer.cfg.iterations:
+    """``trainer.train()`` unless the run already finished its schedule and saved its model (``model/scene.xml``,
+    written last; its evaluation was what was interrupted): then the training seconds are the checkpoint's and
+    nothing is trained or logged again. A run killed after its last checkpoint but before its model was saved goes
+    through ``train()``, which trains nothing more and finishes the end of the run (last convergence point, model)."""
+    if trainer.it >= trainer.cfg.iterations and (trainer.run_dir / "model" / "scene.xml").exists():
         return {"iterations": trainer.it, "train_s": trainer.elapsed}
     return trainer.train(progress=False)

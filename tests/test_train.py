@@ -920,3 +920,22 @@ def test_trade_off_variants_resume_finished_and_interrupted_runs(room, tmp_path)
     assert redone[0]["train_s"] == first[0]["train_s"]
     assert "interrupted" not in json.loads((run / "metrics.json").read_text())
     assert (run / "checkpoint.npz").stat().st_mtime_ns == ckpt  # not trained again
+    # killed after the last checkpoint, before the model was saved: the end of the run is finished, nothing trained
+    (run / "model" / "scene.xml").unlink()
+    (run / "metrics.json").write_text(json.dumps({**m, "interrupted": True}))
+    ended = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
+    assert (run / "model" / "scene.xml").exists() and ended[0]["psnr"] == pytest.approx(first[0]["psnr"], abs=0.05)
+    assert int(np.load(run / "checkpoint.npz")["iteration"]) == 4
+
+
+def test_priors_row_scores_the_prior_maps_as_the_dataset_measured_them(room, tmp_path):
+    """The benchmark's `priors` row: the normal prior read back into world space scores, per test view, the error
+    that PRIORS.json recorded when the maps were written (measured in camera space, another code path); a wrong
+    camera-to-world rotation would not."""
+    from glint_mi.benchmark import score_priors
+
+    res = score_priors(room, tmp_path / "priors")
+    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
+    assert res["per_view"] and json.loads((tmp_path / "priors" / "metrics.json").read_text())["per_view"]
+    for name, m in res["per_view"].items():
+        assert m["normal_mae"] == pytest.approx(rec[name]["measured"]["normal_mae_deg"], abs=1e-3), name

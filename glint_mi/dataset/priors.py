@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from glint_mi.data.priors import KINDS, PriorError, load_prior, prior_conventions, priors_are_derived  # noqa: F401
+from glint_mi.metrics import angles_deg as _angle_deg
 
 
 @dataclasses.dataclass
@@ -117,10 +118,6 @@ def _rotate(n, rotvec):
     k = rotvec / np.maximum(theta, 1e-12)
     return (n * np.cos(theta) + np.cross(k, n) * np.sin(theta)
             + k * np.sum(k * n, axis=-1, keepdims=True) * (1 - np.cos(theta)))
-
-
-def _angle_deg(a, b):
-    return np.degrees(np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0)))
 
 
 def _unit(n):
