@@ -100,6 +100,11 @@ class TrainConfig:
     prior_decay: float = 1.0             # from this fraction of the run the depth and normal prior weights fall
     #                                      linearly to 0 at its end; 1.0 = constant weights (the paper). 0.35 on
     #                                      tuning room 7301: +0.04 dB, normals 1.1 deg worse (docs/decisions.md)
+    prior_layer: str = "interface"       # which layer the depth and normal priors describe: interface (the paper)
+    #                                      | nearer: where the interface is transparent (t > 0.5) and the
+    #                                      transmission set a surface, whichever of the two agrees better with the
+    #                                      prior (an estimator sees through the glass in some views, the pane in
+    #                                      others); the choice per ray is detached (losses.nearer_layer)
     w_consistency: float = 0.1
     consistency_depth: str = "expected"  # the depth whose normals the consistency term compares: expected (GLINT) or
     #                                      median (2DGS's depth_ratio 1: the distance where T falls to 0.5)
@@ -261,6 +266,7 @@ class TrainConfig:
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
+        need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
         need(self.no_glass in ("3dgs", "3dgs+sfm", "glint"), "no_glass", "use 3dgs, 3dgs+sfm or glint")
         need(self.t_gate_votes in ("all", "geometric"), "t_gate_votes", "use all (L_trans's opaque mask) or geometric")
         need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "

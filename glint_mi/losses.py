@@ -32,34 +32,61 @@ def depth_fit(depth, prior, mask, view, n_views: int):
     return dr.gather(mi.Float, w, view), dr.gather(mi.Float, q, view)
 
 
-def depth_loss(depth, prior, mask, view, n_views: int):
-    """Scale-shift-invariant depth loss (MonoSDF): mean over valid rays of (w D + q - P)^2."""
+def depth_loss(depth, prior, mask, view, n_views: int, behind=None):
+    """Scale-shift-invariant depth loss (MonoSDF): mean over valid rays of (w D + q - P)^2. ``behind``: see
+    depth_loss_aligned."""
     w, q = depth_fit(depth, prior, mask, view, n_views)
-    r = dr.select(mask, dr.square(w * depth + q - prior), 0.0)
-    return dr.sum(r) / dr.maximum(dr.count(mask), 1)
+    return depth_loss_aligned(depth, prior, mask, w, q, behind)
 
 
-def depth_loss_aligned(depth, prior, mask, w, q):
+def depth_loss_aligned(depth, prior, mask, w, q, behind=None):
     """The same loss with (w, q) given per ray (fitted once per view to the metric SfM points): the interface's
-    depth is then anchored in metres, not only up to a per-image scale and shift."""
-    r = dr.select(mask, dr.square(w * depth + q - prior), 0.0)
+    depth is then anchored in metres, not only up to a per-image scale and shift.
+
+    ``behind`` = (D_behind, ok): a second layer the prior may describe instead (``prior_layer: nearer``): where
+    ``ok``, each ray's residual is the smaller of the two layers' (nearer_layer)."""
+    r = dr.square(w * depth + q - prior)
+    if behind is not None:
+        r = nearer_layer(r, dr.square(w * behind[0] + q - prior), behind[1])
+    r = dr.select(mask, r, 0.0)
     return dr.sum(r) / dr.maximum(dr.count(mask), 1)
 
 
-def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_cos", masked: bool = True):
+def nearer_layer(err_i, err_t, ok):
+    """Per ray, the error of the layer a prior describes: the interface's (``err_i``) or, where ``ok`` (the
+    interface is transparent and the transmission set a surface), the transmitted surface's (``err_t``) when that
+    one agrees better. The choice is detached; the gradient reaches only the chosen layer. A monocular estimator
+    sees through glass in some views and the pane in others: the views that see through then shape what lies
+    behind the glass instead of pulling the pane onto it."""
+    use_t = mi.Bool(ok) & (dr.detach(err_t) < dr.detach(err_i))
+    return dr.select(use_t, err_t, err_i)
+
+
+def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_cos", masked: bool = True,
+                behind=None):
     """Normal prior: mean over the valid pixels of (1 - <n, p>) (``form`` "cos", the supplement's) or
     |n - p|_1 + (1 - <n, p>) ("l1_cos", glint_mi's), with the cosine mask [<n, p> >= tau_n] when ``masked``.
 
-    ``normal`` and ``prior`` are unit vectors in the same (camera) frame; the mask is detached.
+    ``normal`` and ``prior`` are unit vectors in the same (camera) frame; the mask is detached. ``behind`` =
+    (n_behind, ok): where ``ok``, the layer whose normal agrees better with the prior takes the term
+    (nearer_layer; the cosine mask then reads that layer's cosine).
     """
-    cos = dr.dot(normal, prior)
+    def term_of(n):
+        cos = dr.dot(n, prior)
+        term = 1.0 - cos
+        if form == "l1_cos":
+            d = n - prior
+            term += dr.abs(d.x) + dr.abs(d.y) + dr.abs(d.z)
+        return term, cos
+
+    term, cos = term_of(normal)
+    if behind is not None:
+        term_t, cos_t = term_of(behind[0])
+        use_t = mi.Bool(behind[1]) & (dr.detach(cos_t) > dr.detach(cos))
+        term, cos = dr.select(use_t, term_t, term), dr.select(use_t, cos_t, cos)
     mask = mi.Bool(valid) & dr.isfinite(dr.detach(cos))  # (as wide as the rays)
     if masked:
         mask &= dr.detach(cos) >= tau_n
-    term = 1.0 - cos
-    if form == "l1_cos":
-        d = normal - prior
-        term += dr.abs(d.x) + dr.abs(d.y) + dr.abs(d.z)
     return dr.sum(dr.select(mask, term, 0.0)) / dr.maximum(dr.count(mask), 1), mask
 
 
@@ -240,14 +267,26 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             leaves["distortion"] = _leaf(out["distortion"])
             parts["distortion"] = c.w_dist * dr.mean(leaves["distortion"])
         out_depth = depth  # the interface's planar depth (the depth term below may work in 1 / depth)
+        if "transmission" in st["traced"]:
+            Dc, Dd, Dn, DA = out["trans_direct"]
+            Dc, Dd, Dn, DA = _leaf(mi.Color3f(Dc)), _leaf(Dd), _leaf(Dn), _leaf(DA)
+            leaves["trans_direct"] = (Dc, Dd, Dn, DA)
+        # prior_layer: nearer - where the interface is transparent the priors may describe the transmitted surface
+        behind_ok = None
+        if c.prior_layer == "nearer" and "transmission" in st["traced"]:
+            behind_ok = (dr.detach(t) > 0.5) & (dr.detach(DA) > 0.5) & (dr.detach(Dd) > 0)
         # the prior terms' schedule (prior_decay): an opaque scalar, so the kernels stay the same while it falls
         prior_w = dr.opaque(mi.Float, st.get("prior_scale", 1.0)) if c.prior_decay < 1.0 else 1.0
         if st["depth"]:
             prior = floats(b.depth_prior)
             mask = (prior > 0) & (A > 0.5)
+            d_behind = Dd if behind_ok is not None else None
             if b.depth_inverse:  # a disparity prior (MiDaS, Depth Anything): the fit is affine in 1 / depth
                 mask &= depth > 1e-6
                 depth = 1.0 / dr.maximum(depth, 1e-6)
+                if d_behind is not None:
+                    d_behind = 1.0 / dr.maximum(d_behind, 1e-6)
+            behind = (d_behind, behind_ok) if d_behind is not None else None
             if c.depth_align in ("sfm", "image") and b.depth_affine is not None:
                 fit = np.isfinite(b.depth_affine[:, 0])  # views without a fit keep the per-batch fit
                 w_fix, q_fix = floats(np.where(fit, b.depth_affine[:, 0], 1.0)), floats(
@@ -256,10 +295,10 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                 w_b, q_b = depth_fit(depth, prior, mask & mi.Bool(aligned(~fit, bool)), vid, n_views + 1)
                 sel = mi.Bool(aligned(fit, bool))
                 parts["depth"] = c.w_depth * prior_w * depth_loss_aligned(
-                    depth, prior, mask, dr.select(sel, w_fix, w_b), dr.select(sel, q_fix, q_b))
+                    depth, prior, mask, dr.select(sel, w_fix, w_b), dr.select(sel, q_fix, q_b), behind)
             else:
                 vid = mi.UInt32(aligned(b.view, np.uint32))
-                parts["depth"] = c.w_depth * prior_w * depth_loss(depth, prior, mask, vid, n_views)
+                parts["depth"] = c.w_depth * prior_w * depth_loss(depth, prior, mask, vid, n_views, behind)
         if st["sfm_depth"] and b.sfm_depth is not None:
             z = floats(b.sfm_depth)
             m = (z > 0) & (A > 0.5)
@@ -270,12 +309,12 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
             prior = mi.Vector3f(*floats(b.normal_prior))
             valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
+            behind = None
+            if behind_ok is not None:
+                behind = (mi.Vector3f(dr.dot(axes[0], Dn), dr.dot(axes[1], Dn), dr.dot(axes[2], Dn)), behind_ok)
             parts["normal"] = c.w_normal * prior_w * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
-                                                                 st["normal_masked"])[0]
+                                                                 st["normal_masked"], behind)[0]
         if "transmission" in st["traced"]:
-            Dc, Dd, Dn, DA = out["trans_direct"]
-            Dc, Dd, Dn, DA = _leaf(mi.Color3f(Dc)), _leaf(Dd), _leaf(Dn), _leaf(DA)
-            leaves["trans_direct"] = (Dc, Dd, Dn, DA)
             if st["direct"]:
                 parts["direct"] = c.w_direct * (c.w_l1 * l1(Dc, gt) + c.w_dssim * dssim(Dc, gt, p))
                 if st["consistency"]:

@@ -6,7 +6,7 @@ import pytest
 import drjit as dr
 import mitsuba as mi
 
-from glint_mi.losses import bce, depth_fit, depth_loss, normal_loss, plausibility_weight, transparency_masks
+from glint_mi.losses import bce, depth_fit, depth_loss, depth_loss_aligned, normal_loss, plausibility_weight, transparency_masks
 
 
 def _batch(rng, n_views=3, per=200):
@@ -52,6 +52,36 @@ def test_depth_loss_is_scale_shift_invariant(rng):
     P_exact = 1.7 * D - 0.3
     loss = depth_loss(mi.Float(D), mi.Float(P_exact), mi.Bool(mask), mi.UInt32(view), 3)
     assert float(np.array(loss)[0]) < 1e-8
+
+
+def test_prior_layer_nearer_sends_each_ray_to_the_layer_the_prior_describes():
+    """prior_layer: nearer - where the interface is transparent, a see-through prior supervises the transmitted
+    surface, not the pane; elsewhere (or where the pane agrees better) the interface, exactly as without it."""
+    D_I = np.array([2.0, 2.0, 2.0, 2.0])      # a pane at 2
+    D_T = np.array([3.0, 3.0, 3.0, 3.0])      # the room behind it at 3
+    P = np.array([3.1, 2.1, 3.1, 3.1])        # views that see through (0, 2, 3) and one that sees the pane (1)
+    ok = np.array([True, True, False, True])  # ray 2: the interface is opaque there
+    mask = np.array([True, True, True, False])
+    one, zero = mi.Float(np.ones(4)), mi.Float(np.zeros(4))
+    di, dt = mi.Float(D_I), mi.Float(D_T)
+    dr.enable_grad(di, dt)
+    loss = depth_loss_aligned(di, mi.Float(P), mi.Bool(mask), one, zero, (dt, mi.Bool(ok)))
+    dr.backward(loss)
+    # residuals: ray 0 -> D_T (0.1), ray 1 -> D_I (0.1), ray 2 -> D_I (1.1, opaque), ray 3 masked out
+    np.testing.assert_allclose(float(np.array(loss)[0]), (0.01 + 0.01 + 1.21) / 3, rtol=1e-5)
+    np.testing.assert_allclose(np.array(dr.grad(di)), [0, -0.2 / 3, -2.2 / 3, 0], atol=1e-6)
+    np.testing.assert_allclose(np.array(dr.grad(dt)), [-0.2 / 3, 0, 0, 0], atol=1e-6)
+    # without a second layer: the interface takes every residual
+    base = depth_loss_aligned(mi.Float(D_I), mi.Float(P), mi.Bool(mask), one, zero)
+    np.testing.assert_allclose(float(np.array(base)[0]), (1.21 + 0.01 + 1.21) / 3, rtol=1e-5)
+    # normals: the pane faces the camera, the wall behind it is tilted 40 deg; the prior sees the wall
+    ang = np.radians(40)
+    p = mi.Vector3f(mi.Float([np.sin(ang)] * 2), mi.Float([0, 0]), mi.Float([-np.cos(ang)] * 2))
+    loss, _ = normal_loss(mi.Vector3f(mi.Float([0, 0]), 0, mi.Float([-1, -1])), p, 0.3, True, "cos",
+                          behind=(mi.Vector3f(mi.Float([np.sin(ang)] * 2), 0, mi.Float([-np.cos(ang)] * 2)),
+                                  mi.Bool([True, False])))
+    # ray 0 takes the wall (term 0), ray 1 the pane (1 - cos 40 deg)
+    np.testing.assert_allclose(float(np.array(loss)[0]), (1 - np.cos(ang)) / 2, rtol=1e-5)
 
 
 def test_normal_loss_cosine_mask():
