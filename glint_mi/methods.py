@@ -16,7 +16,8 @@ NOT_OURS = dict(w_sfm_depth=0.0)  # glint_mi's SfM depth term is no baseline's
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
 WITH_PRIORS = dict(w_depth=0.1, w_normal=0.3, priors="all")  # GLINT's depth and normal terms, for prior parity
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
-             w_sfm_depth=0.0, components="all", refine_from=40 / 60)  # the supplement's refine stage
+             w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage
+             prior_layer="interface")  # the priors supervise the interface everywhere
 METHOD_3DGS = dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS,
                    **NO_GLASS, **PLAIN_PHOTO)
 # 2DGS (its release): normal consistency 0.05 on the median depth (depth_ratio 1) from 7k of 30k iterations, depth
@@ -61,7 +62,7 @@ METHODS = {m.name: m for m in [
            "Ref-GS's directional (split-sum) appearance factorisation is replaced by degree-3 SH colour: only the "
            "view dependence is kept"),
     Method("tsgs", dict(**NOT_OURS, components="interface,transmission", trans_masks="prior", w_plausibility=0.0,
-                        t_raise="free", eval_depth="first_surface", **NORMAL_PRIOR),
+                        t_raise="free", eval_depth="first_surface", prior_layer="interface", **NORMAL_PRIOR),
            "surfels with a transparency attribute supervised by transparent masks, and the monocular normal prior",
            "masks from priors/glass/ (a segmentation model's, as TSGS uses Grounded-SAM; for generated rooms derived "
            "from ground truth with a segmenter's errors: ragged edges, missed panes, false blobs); its first-surface "
@@ -88,6 +89,10 @@ METHODS = {m.name: m for m in [
     Method("glint-t-free", dict(t_raise="free"),
            "GLINT with the paper's freedom for t: the photometric terms may raise it wherever their gradient says "
            "(glint_mi's default lets nothing raise t where L_trans's opaque mask votes)"),
+    Method("glint-prior-interface", dict(prior_layer="interface"),
+           "GLINT with the paper's use of the priors: the depth and normal priors supervise the interface everywhere "
+           "(glint_mi's default lets them supervise the transmitted surface where the interface is transparent and "
+           "that surface agrees better)"),
     Method("glint-batch-depth", dict(depth_align="batch"),
            "GLINT with the paper's per-batch scale-shift fit of the depth prior (glint_mi's default fits it once per "
            "view to the SfM points)"),

@@ -139,3 +139,15 @@ def test_config_saved_with_the_old_fresnel_flag_loads(tmp_path):
     assert TrainConfig.load(p).blend == "envgs"
     p.write_text(json.dumps({"preset": "tiny", "fresnel": True}))
     assert TrainConfig.load(p).blend == "fresnel"
+
+
+def test_config_saved_before_prior_layer_resumes_as_it_was_trained(tmp_path):
+    """A run saved before ``prior_layer`` existed trained with its priors on the interface everywhere: resuming it
+    must not switch to the new default; the paper's method and TSGS keep the interface too."""
+    from glint_mi.methods import config_for
+
+    p = tmp_path / "config.json"
+    p.write_text(json.dumps({"preset": "tiny"}))
+    assert TrainConfig.load(p).prior_layer == "interface"
+    assert TrainConfig.for_preset("tiny").prior_layer == "nearer"
+    assert config_for("glint-paper", "tiny").prior_layer == config_for("tsgs", "tiny").prior_layer == "interface"

@@ -285,3 +285,35 @@ def test_components_auto_decision_on_the_measured_pair(cover, share, kept):
     components.decide(fake, {})
     assert fake.report["components"]["transmission"]["kept"] is kept, logs
     assert ("transmission" not in fake.dropped) is kept
+
+
+def test_prior_layer_nearer_in_the_objective(tmp_path):
+    """The batch objective with ``prior_layer: nearer``: where the interface is opaque (t = 0) it is exactly the
+    paper's; where it is transparent (t = 1) each prior term takes, per ray, the better of the two layers - never
+    more than the paper's, less where the transmission set agrees better."""
+    from pathlib import Path
+
+    from glint_mi.scene import read_scene
+    from glint_mi.train import Trainer
+
+    c = TrainConfig.for_preset("tiny", iterations=200, components="all", prior_layer="interface")
+    spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
+    tr = Trainer(tmp_path / "run", c, scene=spec, log=lambda *a, **k: None)
+    tr.it = c.at(0.6)
+    st = tr.stage()
+    assert st["depth"] and st["normal"] and "transmission" in st["traced"]
+    b, ray, fwd, out = _traced_batch(tr, {**st})
+    tr.integ.enabled = set(st["traced"])
+    out = tr.integ.trace(ray, mi.Bool(True), need={"trans_direct"}, forward=fwd)
+    n = dr.width(out["depth"])
+
+    def terms(layer, t):
+        cfg = TrainConfig.for_preset("tiny", iterations=200, components="all", prior_layer=layer)
+        o = {**out, "transparency": mi.Float(np.full(n, t, np.float32))}
+        return L.batch_objective(cfg, b, o, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
+
+    for key in ("depth", "normal"):
+        assert terms("nearer", 0.0)[key] == pytest.approx(terms("interface", 0.0)[key], rel=1e-6)
+    paper, nearer = terms("interface", 1.0), terms("nearer", 1.0)
+    assert nearer["depth"] < paper["depth"] and nearer["normal"] <= paper["normal"] + 1e-7
+    assert nearer["l1"] == pytest.approx(paper["l1"], rel=1e-6)
