@@ -939,3 +939,42 @@ def test_priors_row_scores_the_prior_maps_as_the_dataset_measured_them(room, tmp
     assert res["per_view"] and json.loads((tmp_path / "priors" / "metrics.json").read_text())["per_view"]
     for name, m in res["per_view"].items():
         assert m["normal_mae"] == pytest.approx(rec[name]["measured"]["normal_mae_deg"], abs=1e-3), name
+
+
+def test_cue_accuracy_counts_the_cue_against_the_glass(room, rng):
+    """benchmarks/cue_accuracy.py: with features seen through every glass pixel they land on (1.5x behind the
+    surface the prior sees) and on the surface elsewhere, the cue is "seen through" on the glass and "opaque"
+    off it, and the SfM depth term keeps none of the glass features; with every feature on the surface, the glass
+    is "opaque" too (what a see-through estimator does to the cue)."""
+    import json
+    import sys
+
+    from glint_mi.batch import pixel_rays
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    from cue_accuracy import cue_accuracy
+
+    ds = load_dataset(room)
+    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
+    affine = [[rec[v.name]["depth_scale"], rec[v.name]["depth_shift"]] for v in ds.train_views]
+
+    def observations(behind: float):
+        obs = {}
+        for v in ds.train_views:
+            gt = v.load_gt()
+            ys, xs = np.nonzero(gt["depth"] > 0)
+            k = rng.choice(len(xs), min(60, len(xs)), replace=False)
+            xs, ys = xs[k], ys[k]
+            d = pixel_rays(v, np.stack([xs, ys], -1))
+            dist = gt["depth"][ys, xs] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))
+            dist = np.where(gt["glass"][ys, xs] > 0.5, behind * dist, dist)
+            obs[v.name] = (np.stack([xs + 0.5, ys + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])
+        return obs
+
+    r = cue_accuracy(room, 0.05, 0.04, observations(1.5), affine)
+    assert r["glass_share"] > 0.01
+    assert r["through_on_glass"] > 3 * r["through_off_glass"] and r["opaque_off_glass"] > r["opaque_on_glass"]
+    assert r["sfm_depth_behind_pane"] == 0 or r["sfm_depth_behind_pane"] < 0.2 * r["sfm_depth_glass_pixels"]
+    flat = cue_accuracy(room, 0.05, 0.04, observations(1.0), affine)
+    assert flat["through_on_glass"] < 0.1 and flat["opaque_on_glass"] > 0.5 * flat["opaque_off_glass"] > 0.1
+    assert flat["opaque_on_glass"] > 5 * r["opaque_on_glass"]

@@ -1,0 +1,74 @@
+"""How right L_trans's SfM see-through cue is, against ground-truth glass (issue 24): nothing is trained.
+
+For each dataset (with SfM tracks, a depth prior and ground-truth glass masks) it aligns the depth prior to the SfM
+points and computes the cue exactly as a training run does (``RayBank.see_through_cue``), then counts over the
+training pixels: the share of the glass pixels the cue labels "seen through" (+1) and "opaque" (-1), the same
+shares off the glass, and what the SfM depth term keeps on the glass (tracked pixels whose feature lies more than
+10 % behind the pane pull the interface behind it).
+
+    .venv/bin/python benchmarks/cue_accuracy.py DATASET [DATASET ...] [--margin 0.05] [--radius 0.04]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+
+def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=None, depth_affine=None) -> dict:
+    """The cue's labels on and off the ground-truth glass of ``root``'s training views (shares of pixels).
+    ``observations`` / ``depth_affine`` replace the dataset's SfM tracks / the SfM alignment (tests)."""
+    from glint_mi.batch import RayBank
+    from glint_mi.data import load_dataset
+
+    ds = load_dataset(root)
+    bank = RayBank(ds.train_views, ds.root, use_priors=True)
+    if depth_affine is None:
+        bank.align_depth_priors(ds.points, seed=0)
+    else:
+        bank.depth_affine = np.asarray(depth_affine, np.float64)
+    obs = ds.observations() if observations is None else observations
+    rep = bank.see_through_cue(obs, margin, radius)
+    bank.set_sfm_depth(obs)
+    gts = [v.load_gt() or {} for v in ds.train_views]
+    glass = np.concatenate([np.asarray(g["glass"]).reshape(-1) if "glass" in g else np.zeros(v.height * v.width)
+                            for g, v in zip(gts, ds.train_views)]) > 0.5
+    depth = np.concatenate([np.asarray(g["depth"]).reshape(-1) for g in gts])
+    cue = bank.cue if bank.cue is not None else np.zeros(glass.size, np.int8)
+    share = lambda m, sel: float(np.mean(m[sel])) if sel.any() else float("nan")
+    z = bank.sfm_depth if bank.sfm_depth is not None else np.zeros(glass.size, np.float32)
+    tracked = z > 0
+    return {"dataset": str(root), "glass_share": float(glass.mean()),
+            "through_on_glass": share(cue == 1, glass), "opaque_on_glass": share(cue == -1, glass),
+            "through_off_glass": share(cue == 1, ~glass), "opaque_off_glass": share(cue == -1, ~glass),
+            "through_all": float(np.mean(cue == 1)), "opaque_all": float(np.mean(cue == -1)),
+            "sfm_depth_glass_pixels": int((tracked & glass).sum()),
+            "sfm_depth_behind_pane": int((tracked & glass & (z > 1.1 * depth)).sum()),
+            "sfm_depth_other_pixels": int((tracked & ~glass).sum()), "report": rep}
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("datasets", nargs="+", type=Path)
+    ap.add_argument("--margin", type=float, default=0.05, help="the cue's margin (TrainConfig.cue_margin)")
+    ap.add_argument("--radius", type=float, default=0.04, help="the cue's radius (TrainConfig.cue_radius)")
+    a = ap.parse_args(argv)
+    print(f"margin {a.margin}, radius {a.radius}; shares of training pixels\n")
+    print("| dataset | glass | +1 on glass | -1 on glass | +1 off glass | -1 off glass | SfM depth on glass "
+          "(behind the pane) | SfM depth elsewhere |")
+    print("|---|---|---|---|---|---|---|---|")
+    for d in a.datasets:
+        r = cue_accuracy(d, a.margin, a.radius)
+        f = lambda x: "-" if not np.isfinite(x) else f"{x:.3f}"
+        print(f"| {d} | {r['glass_share']:.3f} | {f(r['through_on_glass'])} | {f(r['opaque_on_glass'])} | "
+              f"{f(r['through_off_glass'])} | {f(r['opaque_off_glass'])} | {r['sfm_depth_glass_pixels']} "
+              f"({r['sfm_depth_behind_pane']}) | {r['sfm_depth_other_pixels']} |")
+
+
+if __name__ == "__main__":
+    main()
