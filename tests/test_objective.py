@@ -84,16 +84,17 @@ def test_plausibility_pulls_only_the_transmission_set():
     assert np.abs(np.array(dr.grad(n_t))).sum() > 0
 
 
-def _traced_batch(tr, st):
-    """One ray batch of a trainer's bank traced with the sets the stage ``st`` traces: (batch, rays, camera
-    forward axes, the integrator's buffers), the inputs of ``losses.batch_objective``."""
+def _traced_batch(tr, st, need=frozenset()):
+    """One ray batch of a trainer's bank traced with the sets the stage ``st`` traces (and the buffer groups in
+    ``need``): (batch, rays, camera forward axes, the integrator's buffers), the inputs of
+    ``losses.batch_objective``."""
     c = tr.cfg
     tr.integ.enabled = set(st["traced"])
     b = tr.bank.sample(np.random.default_rng(0), c.patches, c.patch)
     ray = mi.Ray3f(mi.Point3f(*[mi.Float(b.origin[:, k]) for k in range(3)]),
                    mi.Vector3f(*[mi.Float(b.direction[:, k]) for k in range(3)]))
     fwd = mi.Vector3f(*[mi.Float(b.axes[:, k, 2]) for k in range(3)])
-    return b, ray, fwd, tr.integ.trace(ray, mi.Bool(True), forward=fwd)
+    return b, ray, fwd, tr.integ.trace(ray, mi.Bool(True), need=need, forward=fwd)
 
 
 @pytest.mark.parametrize("variant", ["glint_mi", "supplement", "release"])
@@ -302,9 +303,7 @@ def test_prior_layer_nearer_in_the_objective(tmp_path):
     tr.it = c.at(0.6)
     st = tr.stage()
     assert st["depth"] and st["normal"] and "transmission" in st["traced"]
-    b, ray, fwd, out = _traced_batch(tr, {**st})
-    tr.integ.enabled = set(st["traced"])
-    out = tr.integ.trace(ray, mi.Bool(True), need={"trans_direct"}, forward=fwd)
+    b, ray, fwd, out = _traced_batch(tr, st, need={"trans_direct"})
     n = dr.width(out["depth"])
 
     def terms(layer, t):
