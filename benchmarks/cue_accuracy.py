@@ -27,7 +27,7 @@ def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=
     from glint_mi.data import load_dataset
 
     ds = load_dataset(root)
-    bank = RayBank(ds.train_views, ds.root, use_priors=True)
+    bank = RayBank(ds.train_views, ds.root, use_priors=True, glass_masks="gt")  # gt: the training views' glass
     if depth_affine is None:
         bank.align_depth_priors(ds.points, seed=0)
     else:
@@ -35,10 +35,8 @@ def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=
     obs = ds.observations() if observations is None else observations
     rep = bank.see_through_cue(obs, margin, radius)
     bank.set_sfm_depth(obs)
-    gts = [v.load_gt() or {} for v in ds.train_views]
-    glass = np.concatenate([np.asarray(g["glass"]).reshape(-1) if "glass" in g else np.zeros(v.height * v.width)
-                            for g, v in zip(gts, ds.train_views)]) > 0.5
-    depth = np.concatenate([np.asarray(g["depth"]).reshape(-1) for g in gts])
+    glass = bank.glass > 0.5
+    depth = np.concatenate([np.asarray(v.load_gt()["depth"]).reshape(-1) for v in ds.train_views])
     cue = bank.cue if bank.cue is not None else np.zeros(glass.size, np.int8)
     share = lambda m, sel: float(np.mean(m[sel])) if sel.any() else float("nan")
     z = bank.sfm_depth if bank.sfm_depth is not None else np.zeros(glass.size, np.float32)

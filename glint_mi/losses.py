@@ -58,8 +58,13 @@ def nearer_layer(err_i, err_t, ok):
     one agrees better. The choice is detached; the gradient reaches only the chosen layer. A monocular estimator
     sees through glass in some views and the pane in others: the views that see through then shape what lies
     behind the glass instead of pulling the pane onto it."""
-    use_t = mi.Bool(ok) & (dr.detach(err_t) < dr.detach(err_i))
-    return dr.select(use_t, err_t, err_i)
+    return dr.select(takes_behind(err_i, err_t, ok), err_t, err_i)
+
+
+def takes_behind(err_i, err_t, ok):
+    """The rays where the layer behind takes a prior term (nearer_layer's choice, detached): ``ok`` and a smaller
+    error there."""
+    return mi.Bool(ok) & (dr.detach(err_t) < dr.detach(err_i))
 
 
 def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_cos", masked: bool = True,
@@ -82,7 +87,7 @@ def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_c
     term, cos = term_of(normal)
     if behind is not None:
         term_t, cos_t = term_of(behind[0])
-        use_t = mi.Bool(behind[1]) & (dr.detach(cos_t) > dr.detach(cos))
+        use_t = takes_behind(-cos, -cos_t, behind[1])  # the term and its cosine mask follow one choice
         term, cos = dr.select(use_t, term_t, term), dr.select(use_t, cos_t, cos)
     mask = mi.Bool(valid) & dr.isfinite(dr.detach(cos))  # (as wide as the rays)
     if masked:
