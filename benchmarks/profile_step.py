@@ -103,6 +103,11 @@ def _kbuffer_k(tr, k):
     tr.integ.kbuffer_k = k
 
 
+def _reuse_lists(on):
+    import glint_mi_plugins.glint_march as gm
+    gm.REUSE_LISTS = on
+
+
 from glint_mi.strategy import Adam as _Adam  # noqa: E402
 
 SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda tr: _rebuild_every(0),
@@ -110,7 +115,11 @@ SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambd
             ("Adam on gathered rows (row masks before)", lambda tr: _adam(_Adam.step_masked),
              lambda tr: _adam(_ADAM_STEP)),
             ("one k-buffer round for the hit budget (64 entries a round before)", lambda tr: _kbuffer_k(tr, 64),
-             lambda tr: _kbuffer_k(tr, tr.integ.max_hits))]
+             lambda tr: _kbuffer_k(tr, tr.integ.max_hits)),
+            ("k-buffer list arrays kept between queries (new arrays per query before)", lambda tr: _reuse_lists(False),
+             lambda tr: _reuse_lists(True)),
+            ("Adam's gathered rows in glint_mi.native (numpy before)", lambda tr: setattr(_Adam, "NATIVE", False),
+             lambda tr: setattr(_Adam, "NATIVE", True))]
 _ADAM_STEP = _Adam.step
 
 

@@ -52,6 +52,8 @@ class Adam:
     to 0.01 did not recover in 1000 iterations). This is the "sparse / selective Adam" of fast 3DGS trainers.
     """
 
+    NATIVE = True  # the step in glint_mi.native where it builds (the same numbers); False: numpy only
+
     def __init__(self, lrs: dict[str, float], eps: float = 1e-15, betas=(0.9, 0.999), selective: bool = True):
         self.lrs, self.eps, self.b1, self.b2, self.selective = dict(lrs), eps, betas[0], betas[1], selective
         self.state: dict[str, dict] = {}
@@ -78,8 +80,10 @@ class Adam:
         take = (lambda a: a) if full else (lambda a: a[idx])
         scale = lr_scale or {}
         for f in RAW_FIELDS:
-            g = take(grads[f])
             m, v, n = st[f]
+            if self.NATIVE and self._native_step(f, getattr(gset, f), m, v, n, grads[f], idx, scale):
+                continue
+            g = take(grads[f])
             ns = take(n) + 1  # the moments keep their field's dtype (float32 means): rounded as stored
             ms = (self.b1 * take(m) + (1.0 - self.b1) * g).astype(m.dtype, copy=False)
             vs = (self.b2 * take(v) + (1.0 - self.b2) * g * g).astype(v.dtype, copy=False)
@@ -91,15 +95,34 @@ class Adam:
             c1 = (1.0 - self.b1 ** ns).reshape(shape)
             c2 = (1.0 - self.b2 ** ns).reshape(shape)
             step = (ms / c1) / (np.sqrt(vs / c2) + self.eps)
-            lr = self.lrs[f] * scale.get(f, 1.0)
-            if f == "sh":
-                lr = np.full((1, step.shape[1], 1), self.lrs["sh_rest"] * scale.get("sh", 1.0))
-                lr[:, 0] = self.lrs["sh"] * scale.get("sh", 1.0)
+            lr = self._lr(f, scale, step.shape[1] if step.ndim > 1 else 1)
             value = getattr(gset, f)
             if full:
                 value -= (lr * step).astype(value.dtype)
             else:
                 value[idx] = take(value) - (lr * step).astype(value.dtype)
+
+    def _lr(self, f: str, scale: dict, cols: int):
+        """Field f's learning rate: a scalar, or for ``sh`` one per coefficient, [1, cols, 1] (dc, then the rest)."""
+        if f != "sh":
+            return self.lrs[f] * scale.get(f, 1.0)
+        lr = np.full((1, cols, 1), self.lrs["sh_rest"] * scale.get("sh", 1.0))
+        lr[:, 0] = self.lrs["sh"] * scale.get("sh", 1.0)
+        return lr
+
+    def _native_step(self, f, value, m, v, n, grad, idx, scale) -> bool:
+        """One field's step in glint_mi.native (the arithmetic below, bit for bit, one pass over the touched rows);
+        False when the library or the arrays' layout does not allow it (float32 fields and moments, float64
+        C-contiguous gradients; otherwise the numpy code runs instead)."""
+        from . import native
+        rows = np.arange(len(value)) if idx is None else idx
+        ns = n[rows] + 1
+        c1, c2 = 1.0 - self.b1 ** ns, 1.0 - self.b2 ** ns
+        lr = self._lr(f, scale, value.shape[1] if value.ndim > 1 else 1)
+        if not native.adam_rows(value, m, v, grad, rows, c1, c2, lr, self.b1, self.b2, self.eps):  # float64 grads
+            return False
+        n[rows] = ns
+        return True
 
     def step_masked(self, role: str, gset: GaussianSet, grads: dict[str, np.ndarray], lr_scale: dict | None = None,
                     rows: np.ndarray | None = None) -> None:

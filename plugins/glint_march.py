@@ -4,6 +4,8 @@ of :mod:`glint_mi.native`; Mitsuba's BVH queries with a walk back behind the ori
 constant-memory replay of a pass for reverse-mode gradients."""
 from __future__ import annotations
 
+import threading
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
@@ -13,6 +15,29 @@ from glint_mi import conventions as cv
 from .glint_composite import Composite, GaussianSetRef, _ray_epsilon, _widen
 
 KBUFFER_BYTES = 256 * 2 ** 20  # a k-buffer round's buffers, at most
+# The k-buffer rounds' output arrays, kept between queries of the same shape (per thread, the two latest shapes):
+# fresh arrays of a few megabytes cost their page faults on every query (~1.2 ms at 3072 rays x 256 entries, four
+# queries a training step). Reuse is safe: a query runs after np.asarray of the rays, which waits for every task of
+# the thread, the copy of the previous round's list into Dr.Jit included. REUSE_LISTS = False: new arrays each time.
+REUSE_LISTS = True
+_lists = threading.local()
+
+
+def _list_buffers(n: int, k: int):
+    """(prims, t, count) arrays for a query of n rays and k entries: kept ones when REUSE_LISTS, else new."""
+    if not REUSE_LISTS:
+        return None
+    cache = getattr(_lists, "cache", None)
+    if cache is None:
+        cache = _lists.cache = {}
+    key = (n, k)
+    if key not in cache:
+        while len(cache) >= 2:
+            cache.pop(next(iter(cache)))
+        cache[key] = (np.empty((n, k), np.uint32), np.empty((n, k), np.float32), np.empty(n, np.uint32))
+    else:
+        cache[key] = cache.pop(key)  # the latest last
+    return cache[key]
 
 
 class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
@@ -182,7 +207,7 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
         t_prev, p_prev = np.full(n, -np.inf, np.float32), np.full(n, 0xFFFFFFFF, np.uint32)
         rows = np.arange(n)
         while go.any():
-            prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count())
+            prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count(), out=_list_buffers(n, k))
             T, acc, d_o, d_d, hits, more = self._kbuffer_round(
                 gs, mi.UInt32(prims.ravel()), mi.UInt32(cnt), k, o0, d, t_stop, total, adjoint, ray_grad, budget,
                 listed, slot, T, acc, d_o, d_d, hits)

@@ -146,7 +146,7 @@ def test_buffer_size_does_not_change_the_image(monkeypatch):
 
     rounds = []
     query = native.ShellSet.query
-    monkeypatch.setattr(native.ShellSet, "query", lambda self, *a: rounds.append(a[5]) or query(self, *a))
+    monkeypatch.setattr(native.ShellSet, "query", lambda self, *a, **kw: rounds.append(a[5]) or query(self, *a, **kw))
     ref = _render(4, traversal="kbuffer", kbuffer_k=64)
     for k in (1, 3, 16, 256):
         np.testing.assert_array_equal(_render(4, traversal="kbuffer", kbuffer_k=k), ref)
@@ -157,6 +157,38 @@ def test_buffer_size_does_not_change_the_image(monkeypatch):
     rounds.clear()
     np.testing.assert_array_equal(_render(4, traversal="kbuffer"), ref)
     assert set(rounds) == {5} and len(rounds) > 3, rounds
+
+
+@needs_native
+def test_reused_list_buffers_change_nothing(monkeypatch):
+    """The rounds write into arrays kept from earlier queries (REUSE_LISTS): the same image as fresh arrays, with
+    several rounds a pass (each overwriting the last round's lists) and with the kept arrays full of garbage past
+    every ray's count (what a round leaves there must never be read)."""
+    import glint_mi_plugins.glint_march as gm
+
+    seen = []
+    query = native.ShellSet.query
+
+    def poisoned(self, *a, out=None, **kw):
+        if out is not None:
+            seen.append(out[0].shape)
+            out[0].fill(0xFFFFFFFF - 1)
+            out[1].fill(np.nan)
+            out[2].fill(7)
+        return query(self, *a, out=out, **kw)
+
+    monkeypatch.setattr(gm, "REUSE_LISTS", False)
+    refs = {k: _render(6, traversal="kbuffer", kbuffer_k=k) for k in (3, 256)}
+    monkeypatch.setattr(gm, "REUSE_LISTS", True)
+    monkeypatch.setattr(native.ShellSet, "query", poisoned)
+    for k, ref in refs.items():
+        np.testing.assert_array_equal(_render(6, traversal="kbuffer", kbuffer_k=k), ref)
+    assert (48 * 36, 3) in seen and (48 * 36, 256) in seen
+    shells = native.ShellSet(_shells(np.random.default_rng(0), 10), 1.0)
+    args = (np.zeros((4, 3), np.float32), np.ones((4, 3), np.float32), np.zeros(4, np.float32),
+            np.zeros(4, np.uint32), np.ones(4, bool), 8, 1)
+    with pytest.raises(ValueError, match="uint32 \\[4, 8\\]"):
+        query(shells, *args, out=(np.empty((4, 8), np.int64), np.empty((4, 8), np.float32), np.empty(4, np.uint32)))
 
 
 @needs_native

@@ -348,11 +348,21 @@ def test_selective_adam_steps_only_touched_rows(rng):
     assert g2.logit_opacity[0] - b2[0] < -0.15 and np.all(g2.logit_opacity[1:] == b2[1:])
 
 
-def test_adam_equals_the_row_masked_formulation_bit_for_bit(rng):
-    """The optimiser gathers the touched rows once per field; over 40 steps of random gradients and row masks (and
-    a dense step, and a field reset as the opacity reset does) every parameter and moment equals the row-masked
-    formulation exactly (float32 means included: the moments are rounded as stored)."""
+@pytest.mark.parametrize("native_step", [True, False])
+def test_adam_equals_the_row_masked_formulation_bit_for_bit(rng, monkeypatch, native_step):
+    """The optimiser gathers the touched rows once per field (in numpy, or in one pass of glint_mi.native's
+    adam_rows where the library builds); over 40 steps of random gradients and row masks (and a dense step, and a
+    field reset as the opacity reset does) every parameter and moment equals the row-masked numpy formulation
+    exactly (float32 means included: the moments are rounded as stored)."""
     import copy
+
+    from glint_mi import native
+    calls = []
+    adam_rows = native.adam_rows
+    monkeypatch.setattr(native, "adam_rows", lambda *a: calls.append(1) or adam_rows(*a))
+    monkeypatch.setattr(Adam, "NATIVE", native_step)
+    if native_step and native.load() is None:
+        pytest.skip(f"glint_mi.native not built: {native.why_not()}")
     n = 500
     g = GaussianSet.from_activated(rng.normal(size=(n, 3)), rng.uniform(0.01, 0.1, (n, 3)), rng.normal(size=(n, 4)),
                                    opacities=rng.uniform(0.1, 0.9, n), sh_degree=1)
@@ -371,6 +381,7 @@ def test_adam_equals_the_row_masked_formulation_bit_for_bit(rng):
         assert np.array_equal(getattr(g, f), getattr(ref_g, f)), f
         for a, b in zip(adam.state["interface"][f], ref.state["interface"][f]):
             assert np.array_equal(a, b), f
+    assert len(calls) == (40 * len(RAW_FIELDS) if native_step else 0)
 
 
 def test_quality_of_the_demo_room(tmp_path):

@@ -1,5 +1,6 @@
 """The native k-buffer traversal (``kbuffer.cpp``): per ray, the next K bounding-shell entries of a Gaussian set from
-one Embree traversal, in order, shells around the origin included.
+one Embree traversal, in order, shells around the origin included; and Adam on gathered rows (``adam.cpp``, the
+numpy reference's arithmetic bit for bit, :func:`adam_rows`).
 
 Built with the system C++ compiler against the Embree headers and library that ship in the mitsuba wheel
 (``python -m glint_mi.native``; ``make`` runs it). :func:`load` returns the library, building it on first use when
@@ -17,6 +18,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kbuffer.cpp"
+SOURCES = (SOURCE, HERE / "adam.cpp")
 LIBRARY = HERE / "libglint_kbuffer.so"
 _lib = None
 _why = ""
@@ -33,7 +35,8 @@ def _drjit_dir() -> Path:
 
 
 def build(verbose: bool = False) -> Path:
-    """Compile kbuffer.cpp into LIBRARY (atomically: concurrent builds cannot leave a half-written file)."""
+    """Compile SOURCES into LIBRARY (atomically: concurrent builds cannot leave a half-written file). No fused
+    multiply-adds (-ffp-contract=off): adam.cpp must round as numpy does."""
     cxx = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++") or shutil.which("clang++")
     if not cxx:
         raise RuntimeError("no C++ compiler (g++, c++ or clang++; or set CXX)")
@@ -45,8 +48,8 @@ def build(verbose: bool = False) -> Path:
         raise RuntimeError(f"the drjit wheel at {dr_dir} has no nanothread header/library")
     fd, tmp = tempfile.mkstemp(prefix=".libglint_kbuffer.", suffix=".so", dir=LIBRARY.parent)
     os.close(fd)
-    cmd = [cxx, "-O2", "-std=c++17", "-shared", "-fPIC", "-pthread", f"-I{mi_dir / 'include'}",
-           f"-I{dr_dir / 'include'}", str(SOURCE), "-o", tmp, f"-L{mi_dir}", "-lembree3", f"-Wl,-rpath,{mi_dir}",
+    cmd = [cxx, "-O2", "-std=c++17", "-ffp-contract=off", "-shared", "-fPIC", "-pthread", f"-I{mi_dir / 'include'}",
+           f"-I{dr_dir / 'include'}", *map(str, SOURCES), "-o", tmp, f"-L{mi_dir}", "-lembree3", f"-Wl,-rpath,{mi_dir}",
            f"-L{dr_dir}", "-lnanothread", f"-Wl,-rpath,{dr_dir}"]
     try:
         r = subprocess.run(cmd, capture_output=True, text=True)
@@ -67,7 +70,7 @@ def load():
     if _lib is not None or _why:
         return _lib
     try:
-        if not LIBRARY.exists() or LIBRARY.stat().st_mtime < SOURCE.stat().st_mtime:
+        if not LIBRARY.exists() or LIBRARY.stat().st_mtime < max(p.stat().st_mtime for p in SOURCES):
             build()
         try:
             lib = ctypes.CDLL(str(LIBRARY))
@@ -83,8 +86,35 @@ def load():
     lib.kb_free.restype, lib.kb_free.argtypes = None, [vp]
     lib.kb_query.restype = None
     lib.kb_query.argtypes = [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
+    i64, d = ctypes.c_int64, ctypes.c_double
+    lib.adam_rows.restype = None
+    lib.adam_rows.argtypes = [vp, vp, vp, vp, vp, i64, i64, vp, vp, vp, d, d, d]
     _lib = lib
     return lib
+
+
+def adam_rows(value, m, v, g, rows, c1, c2, lr, b1: float, b2: float, eps: float) -> bool:
+    """Adam's update of the ``rows`` (int64 [R], each in [0, N): not checked) of one field in place, as
+    ``glint_mi.strategy.Adam.step`` computes it (bit for bit): ``value``, ``m``, ``v`` float32 [N, ...], ``g`` float64
+    [N, ...] (all C-contiguous, one shape), ``c1``, ``c2`` float64 [R] (1 - b^n per row), ``lr`` float64, one rate per
+    column. Returns False, touching nothing, when the library is unavailable or an array is not of that layout (the
+    caller computes it)."""
+    import numpy as np
+    lib = load()
+    if lib is None:
+        return False
+    shape = value.shape
+    ok = (value.dtype == m.dtype == v.dtype == np.float32 and g.dtype == np.float64 and m.shape == v.shape == g.shape
+          == shape and len(shape) and value.flags.c_contiguous and value.flags.writeable and m.flags.c_contiguous
+          and v.flags.c_contiguous and g.flags.c_contiguous and rows.dtype == np.int64 and rows.ndim == 1
+          and c1.shape == c2.shape == (len(rows),) and c1.dtype == c2.dtype == np.float64)
+    if not ok:
+        return False
+    cols = m.size // shape[0] if shape[0] else 0
+    lr = np.ascontiguousarray(np.broadcast_to(np.asarray(lr, np.float64), (1,) + shape[1:]).reshape(cols))
+    lib.adam_rows(value.ctypes.data, m.ctypes.data, v.ctypes.data, g.ctypes.data, rows.ctypes.data, len(rows), cols,
+                  c1.ctypes.data, c2.ctypes.data, lr.ctypes.data, float(b1), float(b2), float(eps))
+    return True
 
 
 def why_not() -> str:
@@ -125,16 +155,28 @@ class ShellSet:
             raise RuntimeError("glint_mi.native: kb_refit refused the data")
         self.data = data
 
-    def query(self, o, d, t_prev, p_prev, active, k: int, threads: int):
+    def query(self, o, d, t_prev, p_prev, active, k: int, threads: int, out=None):
         """Per ray, the k nearest shell entries after (t_prev, p_prev): (prims [n, k] uint32, t [n, k] float32,
-        count [n] uint32), sorted by (t, prim); entries behind the origin (t < 0) are shells that hold it."""
+        count [n] uint32), sorted by (t, prim); entries behind the origin (t < 0) are shells that hold it.
+
+        ``out``: those three arrays to write into (their shapes and dtypes as above; entries past a ray's count are
+        left as they were) instead of new ones: a caller that queries the same shapes every step saves the page
+        faults of fresh multi-megabyte arrays. The caller must not hand over memory still being read."""
         import numpy as np
         n = len(active)
         f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)
         o, d, t_prev = f32(o).reshape(n, 3), f32(d).reshape(n, 3), f32(t_prev)
         p_prev = np.ascontiguousarray(p_prev, dtype=np.uint32)
         act = np.ascontiguousarray(active, dtype=np.uint8)
-        prims, ts, count = np.zeros((n, k), np.uint32), np.zeros((n, k), np.float32), np.zeros(n, np.uint32)
+        if out is None:
+            prims, ts, count = np.zeros((n, k), np.uint32), np.zeros((n, k), np.float32), np.zeros(n, np.uint32)
+        else:
+            prims, ts, count = out
+            if (prims.shape, ts.shape, count.shape) != ((n, k), (n, k), (n,)) or (
+                    prims.dtype, ts.dtype, count.dtype) != (np.uint32, np.float32, np.uint32) or not all(
+                    a.flags.c_contiguous and a.flags.writeable for a in out):
+                raise ValueError(f"glint_mi.native: query's out must be writeable C-contiguous arrays uint32 [{n}, "
+                                 f"{k}], float32 [{n}, {k}], uint32 [{n}]")
         self._lib.kb_query(self.handle, n, o.ctypes.data, d.ctypes.data, t_prev.ctypes.data, p_prev.ctypes.data,
                            act.ctypes.data, k, prims.ctypes.data, ts.ctypes.data, count.ctypes.data, int(threads))
         return prims, ts, count
