@@ -123,8 +123,14 @@ SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambd
 _ADAM_STEP = _Adam.step
 
 
+def picked(name: str, only: str) -> bool:
+    """Whether a speed-up's name holds ``only`` or one of its comma-separated parts ('' picks all)."""
+    return any(part in name for part in only.split(","))
+
+
 def ab(tr: Trainer, steps_per_block: int, blocks: int = 4, only: str = "") -> dict:
-    """Median step seconds with the SPEEDUPS (those whose name holds ``only``) off ('before') and on ('after'), in
+    """Median step seconds with the SPEEDUPS (those whose name holds ``only``, or one of its comma-separated parts)
+    off ('before') and on ('after'), in
     alternating blocks, each from the same iteration of the schedule (the stage of the profile above; the model keeps
     training)."""
     times = {"before": [], "after": []}
@@ -133,7 +139,7 @@ def ab(tr: Trainer, steps_per_block: int, blocks: int = 4, only: str = "") -> di
         for variant in ("before", "after"):
             tr.it = it0
             for name, off, on in SPEEDUPS:
-                if only in name:
+                if picked(name, only):
                     (off if variant == "before" else on)(tr)
             times[variant] += steps(tr, steps_per_block, None)[1:]  # the first step of a block pays the switch
     return {k: statistics.median(v) for k, v in times.items()}
@@ -231,7 +237,7 @@ def markdown(name, tr, plain, prof, n, trav, before_after=None, only: str = "") 
     if before_after:
         b, a = before_after["before"], before_after["after"]
         lines += ["Exact speed-ups without a config switch, off (before) and on (after), alternating blocks of steps in "
-                  "this run: " + "; ".join(n for n, _, _ in SPEEDUPS if only in n) + ".", "",
+                  "this run: " + "; ".join(n for n, _, _ in SPEEDUPS if picked(n, only)) + ".", "",
                   "| | step ms | rays/s | x |", "|---|---|---|---|",
                   f"| before | {1e3 * b:.1f} | {rays / b:.0f} | 1.00 |",
                   f"| after | {1e3 * a:.1f} | {rays / a:.0f} | {b / a:.2f} |", ""]
@@ -251,7 +257,7 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="TrainConfig override")
     ap.add_argument("--ab", nargs="?", const="", default=None, metavar="NAME",
                     help="also time the exact speed-ups without a config switch (those whose name holds NAME, e.g. "
-                    "'k-buffer'; all without it) off and on, in alternating blocks of --steps steps")
+                    "'k-buffer', or several: 'list arrays,Adam'; all without it) off and on, in alternating blocks of --steps steps")
     args = ap.parse_args(argv)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     quiet = lambda *a, **k: None
