@@ -130,9 +130,8 @@ def picked(name: str, only: str) -> bool:
 
 def ab(tr: Trainer, steps_per_block: int, blocks: int = 4, only: str = "") -> dict:
     """Median step seconds with the SPEEDUPS (those whose name holds ``only``, or one of its comma-separated parts)
-    off ('before') and on ('after'), in
-    alternating blocks, each from the same iteration of the schedule (the stage of the profile above; the model keeps
-    training)."""
+    off ('before') and on ('after'), in alternating blocks, each from the same iteration of the schedule (the stage of
+    the profile above; the model keeps training)."""
     times = {"before": [], "after": []}
     it0 = tr.it
     for _ in range(blocks):
@@ -257,7 +256,8 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", help="TrainConfig override")
     ap.add_argument("--ab", nargs="?", const="", default=None, metavar="NAME",
                     help="also time the exact speed-ups without a config switch (those whose name holds NAME, e.g. "
-                    "'k-buffer', or several: 'list arrays,Adam'; all without it) off and on, in alternating blocks of --steps steps")
+                    "'k-buffer', or several: 'list arrays,Adam'; all without it) off and on, in alternating blocks "
+                    "of --steps steps")
     args = ap.parse_args(argv)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     quiet = lambda *a, **k: None

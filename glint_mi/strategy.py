@@ -142,10 +142,7 @@ class Adam:
             c1 = (1.0 - self.b1 ** n[sel]).reshape(shape)
             c2 = (1.0 - self.b2 ** n[sel]).reshape(shape)
             step = (m[sel] / c1) / (np.sqrt(v[sel] / c2) + self.eps)
-            lr = self.lrs[f] * (lr_scale or {}).get(f, 1.0)
-            if f == "sh":
-                lr = np.full((1, step.shape[1], 1), self.lrs["sh_rest"] * (lr_scale or {}).get("sh", 1.0))
-                lr[:, 0] = self.lrs["sh"] * (lr_scale or {}).get("sh", 1.0)
+            lr = self._lr(f, lr_scale or {}, step.shape[1] if step.ndim > 1 else 1)
             value = getattr(gset, f)
             value[sel] -= (lr * step).astype(value.dtype)
 

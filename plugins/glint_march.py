@@ -19,13 +19,17 @@ KBUFFER_BYTES = 256 * 2 ** 20  # a k-buffer round's buffers, at most
 # fresh arrays of a few megabytes cost their page faults on every query (~1.2 ms at 3072 rays x 256 entries, four
 # queries a training step). Reuse is safe: a query runs after np.asarray of the rays, which waits for every task of
 # the thread, the copy of the previous round's list into Dr.Jit included. REUSE_LISTS = False: new arrays each time.
+# Only lists of at most KEEP_LIST_BYTES are kept (a training batch's are 6 MB; a full frame's would hold hundreds of MB
+# after the render that needed them).
 REUSE_LISTS = True
+KEEP_LIST_BYTES = 64 * 2 ** 20
 _lists = threading.local()
 
 
 def _list_buffers(n: int, k: int):
-    """(prims, t, count) arrays for a query of n rays and k entries: kept ones when REUSE_LISTS, else new."""
-    if not REUSE_LISTS:
+    """(prims, t, count) arrays for a query of n rays and k entries: kept ones when REUSE_LISTS and they are at most
+    KEEP_LIST_BYTES, else None (the query makes new ones)."""
+    if not REUSE_LISTS or 8 * n * k > KEEP_LIST_BYTES:
         return None
     cache = getattr(_lists, "cache", None)
     if cache is None:

@@ -184,6 +184,12 @@ def test_reused_list_buffers_change_nothing(monkeypatch):
     for k, ref in refs.items():
         np.testing.assert_array_equal(_render(6, traversal="kbuffer", kbuffer_k=k), ref)
     assert (48 * 36, 3) in seen and (48 * 36, 256) in seen
+    monkeypatch.setattr(gm, "KEEP_LIST_BYTES", 8 * 48 * 36 * 3)  # lists larger than the cap are not kept
+    seen.clear()
+    np.testing.assert_array_equal(_render(6, traversal="kbuffer", kbuffer_k=256), refs[256])
+    assert not seen
+    np.testing.assert_array_equal(_render(6, traversal="kbuffer", kbuffer_k=3), refs[3])
+    assert seen and set(seen) == {(48 * 36, 3)}
     shells = native.ShellSet(_shells(np.random.default_rng(0), 10), 1.0)
     args = (np.zeros((4, 3), np.float32), np.ones((4, 3), np.float32), np.zeros(4, np.float32),
             np.zeros(4, np.uint32), np.ones(4, bool), 8, 1)
