@@ -305,6 +305,7 @@ def main(argv=None) -> int:
         return 2
     from .config import ConfigError
     from .optimize import parse_sets
+    from .runs import RunError
 
     extra = {"iterations": args.iterations, "epochs": 0.0} if args.iterations else {}
     try:
@@ -324,7 +325,7 @@ def main(argv=None) -> int:
     try:
         results = run_jobs(jobs, args.preset, args.variant, extra, args.ray,
                            missing="skip" if args.skip_missing else "error")
-    except ClusterError as e:
+    except (ClusterError, RunError) as e:  # RunError: a run folder another process holds
         print(f"error: {e}", file=sys.stderr)
         return 2
     rows = [{"method": m, "scene": scene.name, "seed": seed, **res["metrics"]}

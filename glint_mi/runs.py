@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 from pathlib import Path
+
+LOCK_NAME = ".lock"
 
 
 class RunError(ValueError):
@@ -34,6 +37,38 @@ def check_run_folder(run: Path) -> None:
     parent = run if run.exists() else next((p for p in run.parents if p.exists()), Path("."))
     if not os.access(parent, os.W_OK):
         raise RunError(f"--out {run}: {parent} is not writable; choose another --out.")
+
+
+def hold_run(run: Path):
+    """Take the run folder's lock (``.lock``, a POSIX record lock: the kernel drops it when the process ends, so a
+    killed run leaves no stale lock) and return the open lock file, which must stay referenced for as long as the
+    process works on the run. Raises RunError when another process holds it: two processes training one folder
+    overwrite each other's checkpoints. Within one process the lock is re-entrant (a test may resume a run whose
+    first Trainer is still alive). On a network filesystem without POSIX locks the lock is not taken (said once)."""
+    import fcntl
+
+    run = Path(run)
+    run.mkdir(parents=True, exist_ok=True)
+    f = open(run / LOCK_NAME, "a+")
+    try:
+        fcntl.lockf(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as e:
+        import errno
+
+        f.seek(0)
+        holder = f.read().strip() or "unknown"
+        f.close()
+        if e.errno in (errno.EACCES, errno.EAGAIN):
+            raise RunError(f"{run}: another process ({holder}) is training or evaluating this run (lock "
+                           f"{run / LOCK_NAME}); wait for it to finish, stop it, or choose another --out. Two "
+                           f"processes on one run folder overwrite each other's checkpoints.") from None
+        print(f"note: {run / LOCK_NAME}: cannot lock ({e}); nothing stops a second process on this run")
+        return None
+    f.seek(0)
+    f.truncate()
+    f.write(f"pid {os.getpid()} on {socket.gethostname()}\n")
+    f.flush()
+    return f
 
 
 def load_run_dataset(run_dir: Path, cfg, full: bool = False, log=None):

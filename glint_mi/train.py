@@ -32,7 +32,7 @@ from .data import Dataset, DatasetError, load_dataset
 from .examples import gaussian_scene_dict
 from .gaussians import GaussianSet
 from .render import floats
-from .runs import RunError, atomic_write_bytes, atomic_write_text, load_run_dataset
+from .runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset
 from .scene import OptimScene, initial_sets, read_scene
 from .strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
 
@@ -148,7 +148,7 @@ class Trainer:
         self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
         self.strategy = Strategy(self.cfg, self.extent, np.random.default_rng([self.cfg.seed, 1]))  # own stream
         self.dropped: dict[str, str] = {}
-        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self._lock = hold_run(self.run_dir)  # before anything is written (creates the folder)
         self.cfg.save(self.run_dir / "config.json")
         atomic_write_text(self.run_dir / "run.json", json.dumps(
             {"scene": str(self.scene_spec.path), "dataset": str(self.ds.root), "dataset_options": self.ds.options,
@@ -507,6 +507,7 @@ class Trainer:
         if not path.exists():
             raise RunError(f"{path}: no checkpoint to resume; start the run with `python -m glint_mi.optimize "
                            f"scene.xml --out {self.run_dir}`.")
+        self._lock = hold_run(self.run_dir)  # before the checkpoint is read: another process may be writing it
         info = json.loads((self.run_dir / "run.json").read_text())
         self.scene_spec = read_scene(info["scene"]) if Path(info["scene"]).exists() else None
         if self.ds is None:

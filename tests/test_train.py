@@ -266,6 +266,35 @@ def test_interrupt_saves_a_checkpoint(room, tmp_path, monkeypatch):
     assert not list((tmp_path / "r").glob("*.partial"))
 
 
+def test_a_run_folder_another_process_holds_is_refused(room, tmp_path):
+    """Two processes on one run folder overwrite each other's checkpoints: while another process holds the run's
+    lock a new or resumed Trainer is refused before it writes anything (the message names the holder), the lock
+    goes with the holder's death (no stale lock), a run this process holds refuses other processes, and within one
+    process it is re-entrant."""
+    import os
+
+    from glint_mi.runs import RunError
+
+    run, xml = tmp_path / "r", read_scene(room.parent / "scene.xml")
+    hold = "import sys, time; from glint_mi.runs import hold_run; f = hold_run(sys.argv[1]); print('held', flush=True)"
+    holder = subprocess.Popen([sys.executable, "-c", hold + "; time.sleep(120)", str(run)], cwd=ROOT,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(RunError, match=f"pid {holder.pid} .*another --out"):
+            Trainer(run, tiny_cfg(), scene=xml, log=lambda *a: None)
+        assert [p.name for p in run.iterdir()] == [".lock"]  # nothing else written
+    finally:
+        holder.kill()
+        holder.wait()
+    tr = Trainer(run, tiny_cfg(), scene=xml, log=lambda *a: None)  # the dead holder's lock is gone
+    tr.save_checkpoint()
+    other = subprocess.run([sys.executable, "-c", hold, str(run)], cwd=ROOT, capture_output=True, text=True)
+    assert other.returncode != 0 and f"pid {os.getpid()} " in other.stderr
+    again = Trainer(run, tiny_cfg(), resume=True, log=lambda *a: None)  # same process: re-entrant
+    assert again.it == tr.it == 0
+
+
 def test_cli_scene_optimize_evaluate(room, tmp_path):
     """The README's commands: scene helper -> optimize (loss falls, metrics beat the initialisation, outputs
     written) -> evaluate recomputes the same metrics."""
