@@ -44,7 +44,8 @@ def hold_run(run: Path):
     killed run leaves no stale lock) and return the open lock file, which must stay referenced for as long as the
     process works on the run. Raises RunError when another process holds it: two processes training one folder
     overwrite each other's checkpoints. Within one process the lock is re-entrant (a test may resume a run whose
-    first Trainer is still alive). On a network filesystem without POSIX locks the lock is not taken (said once)."""
+    first Trainer is still alive; closing either lock file then frees the folder, as POSIX record locks are per
+    process). On a filesystem without POSIX locks the lock is not taken and a note says so."""
     import fcntl
 
     run = Path(run)
