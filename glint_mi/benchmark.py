@@ -93,7 +93,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
             **extra) -> dict:
     """Train (or resume, or skip when finished) one method on one scene and evaluate it; returns the metrics."""
     from .evaluate import evaluate
-    from .runs import finished_metrics, train_unless_done
+    from .runs import finished_metrics, hold_run, train_unless_done
     from .scene import read_scene, scene_xml
     from .train import Trainer
 
@@ -102,6 +102,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
         return done
     if method == PRIORS_ROW:
         return score_priors(scene_dir, run)
+    lock = hold_run(run)  # before scene.xml is written; the Trainer takes it again (re-entrant in one process)
     cfg = config_for(method, preset, variant, **extra)
     if (run / "checkpoint.npz").exists():
         trainer = Trainer(run, cfg, resume=True, log=log)
@@ -114,6 +115,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
                                                  "differs": METHODS[method].differs}, indent=1))
     res = train_unless_done(trainer)
     out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"], **trainer.eval_options())
+    del lock  # held until the evaluation is written
     return {k: v for k, v in out.items() if k not in ("per_view", "renders")}
 
 

@@ -283,6 +283,10 @@ def test_a_run_folder_another_process_holds_is_refused(room, tmp_path):
         assert holder.stdout.readline().strip() == "held"
         with pytest.raises(RunError, match=f"pid {holder.pid} .*another --out"):
             Trainer(run, tiny_cfg(), scene=xml, log=lambda *a: None)
+        from glint_mi.benchmark import DEFAULT_VARIANT, run_one
+
+        with pytest.raises(RunError, match=f"pid {holder.pid} "):  # the benchmark's path: refused before scene.xml
+            run_one("glint", room, run, "tiny", DEFAULT_VARIANT, log=lambda *a: None)
         assert [p.name for p in run.iterdir()] == [".lock"]  # nothing else written
     finally:
         holder.kill()
