@@ -265,6 +265,14 @@ def write_results(rows: list[dict], out: Path, header: str = "") -> str:
     return text
 
 
+def job_list(methods, scenes, seeds, out: Path) -> list:
+    """(method, scene, run folder, seed) for every run, scene by scene: seed 0's folder is ``OUT/runs/<scene>/<method>``,
+    seed k's ``<method>@seed<k>``; the prior maps do not depend on a seed, so ``priors`` runs for the first seed only."""
+    return [(m, scene, out / "runs" / scene.name / (m if seed == 0 else f"{m}@seed{seed}"), seed)
+            for scene in scenes for seed in seeds for m in methods
+            if not (m == PRIORS_ROW and seed != seeds[0])]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m glint_mi.benchmark", description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
@@ -278,6 +286,9 @@ def main(argv=None) -> int:
                     help="override the preset's budget (epochs) with a fixed iteration count (same for every method)")
     ap.add_argument("--seeds", type=int, default=1,
                     help="train every method x scene with seeds 0..N-1; the table then gives mean and spread")
+    ap.add_argument("--seed-ids", default=None, metavar="K[,K...]",
+                    help="train these seeds only, instead of 0..N-1 (e.g. 1 to add a second seed to a study whose "
+                         "seed-0 runs lie elsewhere); the run folders are named as with --seeds")
     ap.add_argument("--set", action="append", metavar="FIELD=VALUE",
                     help="a TrainConfig field for every method (e.g. eval_every=200 for convergence curves)")
     ap.add_argument("--out", type=Path, default=Path("out/benchmark"))
@@ -290,6 +301,14 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.seeds < 1:
         ap.error("--seeds must be >= 1")
+    seeds = list(range(args.seeds))
+    if args.seed_ids is not None:
+        try:
+            seeds = sorted({int(k) for k in args.seed_ids.split(",") if k.strip()})
+        except ValueError:
+            seeds = []
+        if not seeds or seeds[0] < 0:
+            ap.error(f"--seed-ids {args.seed_ids!r}: give seed numbers >= 0 separated by commas, e.g. --seed-ids 1,2")
 
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     bad = [m for m in methods if m not in METHODS and m != PRIORS_ROW]
@@ -321,9 +340,7 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     from .evaluate import machine
 
-    jobs = [(m, scene, args.out / "runs" / scene.name / (m if seed == 0 else f"{m}@seed{seed}"), seed)
-            for scene in scenes for seed in range(args.seeds) for m in methods
-            if not (m == PRIORS_ROW and seed > 0)]  # the prior maps do not depend on a seed
+    jobs = job_list(methods, scenes, seeds, args.out)
     try:
         results = run_jobs(jobs, args.preset, args.variant, extra, args.ray,
                            missing="skip" if args.skip_missing else "error")
