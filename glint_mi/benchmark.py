@@ -284,11 +284,12 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")
     ap.add_argument("--iterations", type=int,
                     help="override the preset's budget (epochs) with a fixed iteration count (same for every method)")
-    ap.add_argument("--seeds", type=int, default=1,
-                    help="train every method x scene with seeds 0..N-1; the table then gives mean and spread")
-    ap.add_argument("--seed-ids", default=None, metavar="K[,K...]",
-                    help="train these seeds only, instead of 0..N-1 (e.g. 1 to add a second seed to a study whose "
-                         "seed-0 runs lie elsewhere); the run folders are named as with --seeds")
+    which = ap.add_mutually_exclusive_group()
+    which.add_argument("--seeds", type=int, default=1,
+                       help="train every method x scene with seeds 0..N-1; the table then gives mean and spread")
+    which.add_argument("--seed-ids", default=None, metavar="K[,K...]",
+                       help="train these seeds only, instead of 0..N-1 (e.g. 1 to add a second seed to a study whose "
+                            "seed-0 runs lie elsewhere); the run folders are named as with --seeds")
     ap.add_argument("--set", action="append", metavar="FIELD=VALUE",
                     help="a TrainConfig field for every method (e.g. eval_every=200 for convergence curves)")
     ap.add_argument("--out", type=Path, default=Path("out/benchmark"))

@@ -103,8 +103,8 @@ def test_seed_ids_add_seeds_to_a_study(tmp_path):
         ("glint", "scene_b", "runs/scene_b/glint@seed1", 1), ("priors", "scene_b", "runs/scene_b/priors@seed1", 1)]
     two = job_list(["glint", "priors"], [a], [0, 1], tmp_path)
     assert [(m, r.name) for m, _, r, _ in two] == [("glint", "glint"), ("priors", "priors"), ("glint", "glint@seed1")]
-    for spec in ("x", ",", "-1"):
-        r = subprocess.run([sys.executable, "-m", "glint_mi.benchmark", "--data", str(tmp_path), "--seed-ids", spec,
+    for spec in (["x"], [","], ["-1"], ["1", "--seeds", "2"]):  # the last: which seeds would be ambiguous
+        r = subprocess.run([sys.executable, "-m", "glint_mi.benchmark", "--data", str(tmp_path), "--seed-ids", *spec,
                             "--out", str(tmp_path / "o")], capture_output=True, text=True, cwd=ROOT, timeout=120)
         assert r.returncode == 2 and "--seed-ids" in r.stderr and not (tmp_path / "o").exists(), (spec, r.stderr)
 
