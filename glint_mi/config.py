@@ -56,6 +56,9 @@ class TrainConfig:
     opacity_shells: bool = True          # each Gaussian's BVH shell ends where its alpha reaches the 1/255 cut-off
     #                                      (glint_gaussians' opacity_shells); false: 3.33 sigma for every opacity
     blend: str = "fresnel"               # fresnel (GLINT) | envgs: (1 - beta) c_I + beta c_R | alpha: plain compositing
+    #                                      | refgs: Ref-GS's deferred srgb(c_I + s(reflect(d, N), beta as roughness))
+    env_levels: int = 7                  # refgs: mip levels of its directional grid, 2^L x 2^(L+1) texels at level 0
+    lr_env: float = 0.002                # refgs: the grid's learning rate (Ref-GS's encoding_lr)
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
     trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | prior (a segmentation model's masks in
     #                                      priors/glass/: the TSGS baseline) | gt (ground-truth glass masks, labelled)
@@ -274,8 +277,11 @@ class TrainConfig:
         need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
         need(self.no_glass in ("3dgs", "3dgs+sfm", "glint"), "no_glass", "use 3dgs, 3dgs+sfm or glint")
         need(self.t_gate_votes in ("all", "geometric"), "t_gate_votes", "use all (L_trans's opaque mask) or geometric")
-        need(self.blend in ("fresnel", "envgs", "alpha"), "blend", "use fresnel (GLINT), envgs or alpha (plain "
+        need(self.blend in ("fresnel", "envgs", "alpha", "refgs"), "blend", "use fresnel (GLINT), envgs, refgs or alpha (plain "
              "alpha compositing, the 3DGS-family baselines)")
+        need(1 <= self.env_levels <= 10, "env_levels", "use 1..10 mip levels (7: a 128 x 256 grid)")
+        need(self.blend != "refgs" or self.components.replace(" ", "") == "interface", "components",
+             "blend refgs shades the interface alone: use components interface")
         comps = self.components.replace(" ", "")
         need(comps in ("auto", "all") or set(comps.split(",")) <= set(cv.ROLES), "components",
              f"use auto, all or a comma list of {cv.ROLES}")

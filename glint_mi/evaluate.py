@@ -217,8 +217,17 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
     model = Path(run) / "model"
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
     budget = cfg.max_hits if max_hits is None else max_hits
+    env = {}
+    if cfg.blend == "refgs":  # Ref-GS's directional grid, written beside the sets
+        if not (model / "env.npy").exists():
+            from .runs import RunError
+
+            raise RunError(f"{model / 'env.npy'}: a refgs model needs its directional grid; the run did not "
+                                    f"finish saving its model - resume it with `python -m glint_mi.optimize "
+                                    f"--resume {run}`.")
+        env = {"env_levels": cfg.env_levels, "env_file": str((model / "env.npy").resolve())}
     scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components=components,
-                                             max_order=cfg.max_order, max_hits=budget, blend=cfg.blend))
+                                             max_order=cfg.max_order, max_hits=budget, blend=cfg.blend, **env))
     return scene.integrator()
 
 

@@ -145,6 +145,9 @@ class Trainer:
         self.bounds = (lo, hi)
         self.extent = float(extent)
         self.report["init"] = {**rep, "extent": self.extent, "box": [lo.tolist(), hi.tolist()]}
+        self.env = self.env_adam = None
+        if self.cfg.blend == "refgs":
+            self._refgs_start()
         self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
         self.strategy = Strategy(self.cfg, self.extent, np.random.default_rng([self.cfg.seed, 1]))  # own stream
         self.dropped: dict[str, str] = {}
@@ -154,6 +157,44 @@ class Trainer:
             {"scene": str(self.scene_spec.path), "dataset": str(self.ds.root), "dataset_options": self.ds.options,
              "dataset_notes": self.ds.notes, "sparse": str(self.ds.sparse) if self.ds.sparse else None,
              "tracks_distorted": self.ds.tracks_distorted}, indent=1))
+
+    def _refgs_start(self):
+        """Ref-GS's starting point: roughness 0.5 (its sigmoid(0); beta carries it), the albedo composited in linear
+        space (the SfM colours converted, so the first image shows them), and the directional grid at its initial
+        value (glint_env)."""
+        from glint_mi_plugins.glint_env import DirectionalGrid, srgb_to_linear
+
+        gs = self.sets["interface"]
+        gs.logit_specular[:] = 0.0
+        colour = gs.sh[:, 0] * cv.SH_C0 + 0.5
+        gs.sh[:, 0] = ((srgb_to_linear(colour) - 0.5) / cv.SH_C0).astype(gs.sh.dtype)
+        grid = DirectionalGrid(self.cfg.env_levels)
+        self.env = np.array(grid.data, np.float32)  # channel-major flat, as the integrator holds it
+        self.env_adam = (np.zeros_like(self.env), np.zeros_like(self.env), np.zeros(1))
+
+    def _env_step(self):
+        """Dense Adam on the refgs grid (every ray reads it), then back to the integrator with gradients on."""
+        import drjit as dr
+
+        grid = self.integ.env
+        g = np.nan_to_num(np.array(dr.grad(grid.data), np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        dr.clear_grad(grid.data)
+        m, v, n = self.env_adam
+        b1, b2 = self.adam.b1, self.adam.b2
+        n += 1
+        m[:] = b1 * m + (1.0 - b1) * g
+        v[:] = b2 * v + (1.0 - b2) * g * g
+        step = (m / (1.0 - b1 ** n[0])) / (np.sqrt(v / (1.0 - b2 ** n[0])) + self.cfg.adam_eps)
+        self.env -= (self.cfg.lr_env * self.cfg.lr_multiplier * step).astype(np.float32)
+        self._push_env()
+
+    def _push_env(self):
+        import drjit as dr
+        import mitsuba as mi
+
+        grid = self.integ.env
+        grid.data = mi.Float(self.env)
+        dr.enable_grad(grid.data)
 
     def _set_budget(self):
         """epochs -> iterations from the training set's size (recomputed identically on resume)."""
@@ -181,10 +222,14 @@ class Trainer:
         props = {"components": "all", "max_order": self.cfg.max_order,
                  "max_hits": self.cfg.max_hits, "blend": self.cfg.blend, "traversal": self.cfg.traversal,
                  "aovs": "depth,normal,transparency,interface,alpha,weights"}
+        if self.cfg.blend == "refgs":
+            props["env_levels"] = self.cfg.env_levels
         self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, self.cfg.opacity_shells, **props))
         self.integ = self.scene.integrator()
         self.params = mi.traverse(self.integ)
         self._push()
+        if self.integ.env is not None:
+            self._push_env()
 
     def _push(self, roles=None):
         """Send the sets' current values (and sizes) to the renderer; a `data` change rebuilds that set's BVH, so
@@ -287,6 +332,8 @@ class Trainer:
         c = self.cfg
         frac = self.it / max(c.iterations - 1, 1)
         lr_pos = np.exp((1 - frac) * np.log(c.lr_position) + frac * np.log(c.lr_position_final)) / c.lr_position
+        if self.env is not None:
+            self._env_step()
         for role in list(self.sets):
             gs = self.sets[role]
             grads = {k: np.array(dr.grad(self.params[f"{role}.{k}"]), np.float64) for k in PARAM_KEYS}
@@ -494,6 +541,9 @@ class Trainer:
         if self.cfg.depth_align == "image" and self.bank.depth_affine is not None:  # refitted from the model
             arrays["depth_affine"] = self.bank.depth_affine
         arrays.update({f"adam/{k}": v for k, v in self.adam.state_dict().items()})
+        if self.env is not None:
+            arrays.update({"env": self.env, "env_adam/m": self.env_adam[0], "env_adam/v": self.env_adam[1],
+                           "env_adam/n": self.env_adam[2]})
         arrays.update({f"strategy/{k}": v for k, v in self.strategy.state_dict().items()})
         buf = io.BytesIO()
         np.savez(buf, **arrays)
@@ -526,6 +576,10 @@ class Trainer:
         self.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
         self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
         self.adam.load_state_dict({k[5:]: v for k, v in z.items() if k.startswith("adam/")})
+        self.env = self.env_adam = None
+        if "env" in z:
+            self.env = z["env"].astype(np.float32)
+            self.env_adam = (z["env_adam/m"].copy(), z["env_adam/v"].copy(), z["env_adam/n"].copy())
         srng = np.random.default_rng()
         srng.bit_generator.state = json.loads(str(z["strategy_rng"]))
         self.strategy = Strategy(self.cfg, self.extent, srng)
@@ -569,6 +623,14 @@ class Trainer:
             f'            <string name="kernel" value="{self.cfg.kernel}"/>\n'
             f'            <boolean name="opacity_shells" value="{str(self.cfg.opacity_shells).lower()}"/>\n'
             f'        </shape>' for r in sets)
+        env = ""
+        if self.env is not None:  # refgs: the directional grid, [h, w, 3] log-radiance
+            grid = self.integ.env
+            buf = io.BytesIO()
+            np.save(buf, self.env.reshape(3, grid.h, grid.w).transpose(1, 2, 0))
+            atomic_write_bytes(model / "env.npy", buf.getvalue())
+            env = (f'        <integer name="env_levels" value="{self.cfg.env_levels}"/>\n'
+                   f'        <string name="env_file" value="env.npy"/>\n')
         xml = (f'<scene version="3.0.0">\n    <!-- trained by glint_mi ({self.it} iterations); render with '
                f'mitsuba or python -m glint_mi.evaluate -->\n'
                f'    <integrator type="glint" id="integrator">\n'
@@ -576,7 +638,7 @@ class Trainer:
                f'        <string name="components" value="all"/>\n'
                f'        <string name="blend" value="{self.cfg.blend}"/>\n'
                f'        <integer name="max_order" value="{self.cfg.max_order}"/>\n'
-               f'        <integer name="max_hits" value="{self.cfg.max_hits}"/>\n{shapes}\n    </integrator>\n'
+               f'        <integer name="max_hits" value="{self.cfg.max_hits}"/>\n{env}{shapes}\n    </integrator>\n'
                f'{sensor_xml(cam, 1)}</scene>\n')
         atomic_write_text(model / "scene.xml", xml)
         self._write_log()

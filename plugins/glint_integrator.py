@@ -110,6 +110,7 @@ from glint_mi import native
 
 from . import glint_gaussians
 from .glint_composite import Composite, GaussianSetRef, _widen  # noqa: F401  (re-exported)
+from .glint_env import DirectionalGrid, refgs_shade
 from .glint_march import KBUFFER_BYTES, GaussianPasses  # noqa: F401
 from .glint_mesh import first_surface, is_glass, trace_meshes  # noqa: F401
 
@@ -126,7 +127,7 @@ AOV_GROUPS = {
 }
 DEFAULT_AOVS = "depth,normal,transparency,interface,reflection,transmission,alpha"
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1.0 / 255.0, 0.99, 1e-4
-BLENDS = ("fresnel", "envgs", "alpha")
+BLENDS = ("fresnel", "envgs", "alpha", "refgs")
 
 
 def schlick(cos_theta, f0):
@@ -135,6 +136,20 @@ def schlick(cos_theta, f0):
 
 def reflect(d, n):
     return d - 2.0 * dr.dot(d, n) * n
+
+
+def _read_env(filename: str):
+    """An env_file's [h, w, 3] log-radiance grid (.npy, as a trained refgs model writes it), or None (initial)."""
+    if not filename:
+        return None
+    import numpy as np
+
+    path = mi.Thread.thread().file_resolver().resolve(filename)
+    try:
+        return np.load(str(path))
+    except (OSError, ValueError) as e:
+        raise ValueError(f"glint: cannot read env_file '{path}' ({e}); it is the model's env.npy, written by "
+                         f"training with blend refgs.") from e
 
 
 def _adjoint_dot(out: dict, adjoints: dict):
@@ -206,6 +221,9 @@ class GlintIntegrator(GaussianPasses):
         self.blend = str(props.get("blend", legacy))
         if self.blend not in BLENDS:
             raise ValueError(f"glint: 'blend' must be one of {', '.join(BLENDS)} (got '{self.blend}').")
+        self.env = None  # refgs: Ref-GS's directional grid (glint_env), read at the composited normal's reflection
+        if self.blend == "refgs":
+            self.env = DirectionalGrid(int(props.get("env_levels", 7)), _read_env(str(props.get("env_file", ""))))
         self.reflect_min = float(props.get("reflect_min", 0.05))
         self.transmit_min = float(props.get("transmit_min", 1e-3))
         comps = str(props.get("components", "auto")).replace(" ", "")
@@ -358,7 +376,7 @@ class GlintIntegrator(GaussianPasses):
         elif self.blend == "envgs":
             ks = dr.clip(I.B, 0.0, 1.0)
             kd, kt = 1.0 - ks, mi.Float(0.0)
-        else:  # alpha: the interface alone, composited front to back
+        else:  # alpha, refgs: the interface alone, composited front to back (refgs adds its specular in _combine)
             ks, kt, kd = mi.Float(0.0), mi.Float(0.0), mi.Float(1.0)
         ks, kt, kd = dr.select(has, ks, 0.0), dr.select(has, kt, 0.0), dr.select(has, kd, 1.0)
         refl, trans = self.active_set("reflection"), self.active_set("transmission")
@@ -388,7 +406,10 @@ class GlintIntegrator(GaussianPasses):
     def _combine(self, I, R, Tr, R2, D, weights, d, forward, order2: bool) -> dict:
         kd, ks, kt = weights[:3]
         cT = (1.0 - Tr.B) * Tr.C + Tr.B * R2.C if order2 else Tr.C
-        rgb = kd * I.C + ks * R.C + kt * cT
+        if self.blend == "refgs":  # deferred: srgb(albedo + grid(reflect(d, N), beta as roughness))
+            rgb = refgs_shade(I.C, I.A, I.B, I.normal, d, self.env)
+        else:
+            rgb = kd * I.C + ks * R.C + kt * cT
         z = dr.dot(d, forward)
         return {"rgb": mi.Spectrum(rgb), "kd": kd, "ks": ks, "kt": kt, "distance": I.depth,
                 "depth": I.depth * z, "normal": I.normal, "transparency": I.Tau, "interface": I.C,

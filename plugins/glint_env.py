@@ -1,0 +1,116 @@
+"""Ref-GS's directional appearance (Zhang et al., CVPR 2025) for the ``refgs`` blend of the ``glint`` integrator.
+
+Ref-GS shades each pixel after compositing (deferred): the composited albedo a, roughness r and normal n give the
+reflected direction w_o = reflect(d, n), a "spherical Mip-grid" is read at w_o with mip level r x L, and the pixel is
+
+    C = srgb(clamp(a + s, 0, 1)),  s = exp(min(f(grid(w_o, r L)), 5)),
+
+where its f is a small MLP that also reads per-Gaussian latent features. Here the grid holds RGB log-radiance and f
+is the identity (no latent features, no MLP): the environment a rough or a mirror-like surface reflects, looked up
+with the roughness's blur. The grid is a latitude-longitude map of 2^L x 2^(L+1) texels (latitude from the world
++z axis) with L mip levels made by 2 x 2 averaging of the level above, read bilinearly (wrapping in longitude) and
+linearly between levels, as nvdiffrast's trilinear texture lookup that Ref-GS uses.
+
+Everything is Dr.Jit arithmetic on one flat ``mi.Float`` (channel-major, level 0): gradients reach the grid, the
+roughness and the normal through AD (the integrator differentiates its shading head with AD on the composites).
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+INIT_LOG_RADIANCE = math.log(0.05)  # the grid's initial value: s = 0.05 everywhere
+MAX_LOG = 5.0  # Ref-GS clamps the MLP's output at 5 before exp
+
+
+def srgb(x):
+    """sRGB transfer of linear values in [0, 1] (Ref-GS's linear2srgb, clamping to [1e-10, 1] first)."""
+    x = dr.clip(x, 1e-10, 1.0)
+    return dr.select(x <= 0.0031308, 12.92 * x, 1.055 * dr.power(x, 1.0 / 2.4) - 0.055)
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`srgb` on [0, 1] (numpy): a starting albedo whose composite shows the photo's colour."""
+    c = np.clip(c, 0.0, 1.0)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+class DirectionalGrid:
+    """RGB log-radiance over directions, ``levels`` mip levels of a 2^levels x 2^(levels+1) lat-long map."""
+
+    def __init__(self, levels: int, values: np.ndarray | None = None):
+        if not 1 <= levels <= 10:
+            raise ValueError(f"glint: 'env_levels' must be in 1..10 (got {levels}).")
+        self.levels = int(levels)
+        self.h, self.w = 2 ** self.levels, 2 ** (self.levels + 1)
+        if values is None:
+            values = np.full((self.h, self.w, 3), INIT_LOG_RADIANCE, np.float32)
+        values = np.asarray(values, np.float32)
+        if values.shape != (self.h, self.w, 3):
+            raise ValueError(f"glint: the environment grid must be {self.h} x {self.w} x 3 for env_levels = "
+                             f"{self.levels} (got {values.shape}).")
+        self.data = mi.Float(np.ascontiguousarray(values.transpose(2, 0, 1)).ravel())  # channel-major
+
+    def numpy(self) -> np.ndarray:
+        """[h, w, 3] log-radiance."""
+        return np.array(self.data, np.float32).reshape(3, self.h, self.w).transpose(1, 2, 0)
+
+    def set_numpy(self, values: np.ndarray) -> None:
+        self.data = mi.Float(np.ascontiguousarray(np.asarray(values, np.float32).transpose(2, 0, 1)).ravel())
+
+    def pyramid(self):
+        """[(channels (3 Floats of h_k w_k), h_k, w_k)] for k = 0 .. levels - 1; coarser levels average 2 x 2."""
+        n = self.h * self.w
+        out = [(tuple(dr.gather(mi.Float, self.data, dr.arange(mi.UInt32, n) + c * n) for c in range(3)),
+                self.h, self.w)]
+        for _ in range(1, self.levels):
+            chans, h, w = out[-1]
+            h2, w2 = h // 2, w // 2
+            i = dr.arange(mi.UInt32, h2 * w2)
+            y, x = i // w2, i % w2
+            taps = [(2 * y + dy) * w + 2 * x + dx for dy in (0, 1) for dx in (0, 1)]
+            out.append((tuple(0.25 * sum(dr.gather(mi.Float, ch, t) for t in taps) for ch in chans), h2, w2))
+        return out
+
+    def lookup(self, direction, level):
+        """Trilinear read at unit ``direction`` (world) and fractional mip ``level`` in [0, levels - 1]."""
+        z = dr.clip(direction.z, -1.0 + 1e-6, 1.0 - 1e-6)
+        u = dr.atan2(direction.y, direction.x) * (0.5 / dr.pi) + 0.5  # longitude in [0, 1]
+        v = dr.acos(z) / dr.pi  # colatitude in [0, 1]
+        level = dr.clip(level, 0.0, self.levels - 1.0)
+        acc = mi.Color3f(0.0)
+        for k, (chans, h, w) in enumerate(self.pyramid()):
+            wk = dr.maximum(0.0, 1.0 - dr.abs(level - k))
+            xf, yf = u * w - 0.5, v * h - 0.5
+            x0, y0 = dr.floor(xf), dr.floor(yf)
+            fx, fy = xf - x0, yf - y0
+            xi0 = mi.Int32(x0)
+            xi0 = dr.select(xi0 < 0, xi0 + w, dr.select(xi0 >= w, xi0 - w, xi0))
+            xi1 = dr.select(xi0 + 1 >= w, xi0 + 1 - w, xi0 + 1)
+            yi0 = dr.clip(mi.Int32(y0), 0, h - 1)
+            yi1 = dr.clip(mi.Int32(y0) + 1, 0, h - 1)
+            idx = [(yi0 * w + xi0, (1 - fx) * (1 - fy)), (yi0 * w + xi1, fx * (1 - fy)),
+                   (yi1 * w + xi0, (1 - fx) * fy), (yi1 * w + xi1, fx * fy)]
+            val = [sum(dr.gather(mi.Float, ch, mi.UInt32(i)) * wt for i, wt in idx) for ch in chans]
+            acc += wk * mi.Color3f(*val)
+        return acc
+
+    def specular(self, direction, roughness):
+        """Ref-GS's specular radiance s = exp(min(grid(w_o, r L), 5)) (f = identity here)."""
+        return dr.exp(dr.minimum(self.lookup(direction, roughness * self.levels), MAX_LOG))
+
+
+def reflected(d, n):
+    """w_o = d - 2 (d . n) n, normalised (Ref-GS's reflect(-d, n))."""
+    return dr.normalize(d - 2.0 * dr.dot(d, n) * n)
+
+
+def refgs_shade(C, A, B, N, d, grid: DirectionalGrid, alpha_min: float = 0.05):
+    """Ref-GS's deferred pixel: srgb(clamp(a + s, 0, 1)) where the composited alpha exceeds ``alpha_min`` (0 elsewhere,
+    as its renderer leaves those pixels to the background); C = composited albedo, B = composited roughness, N =
+    normalised composited normal (world), d = ray direction."""
+    s = grid.specular(reflected(d, N), B)
+    return dr.select(dr.detach(A) > alpha_min, srgb(C + s), 0.0)
