@@ -59,6 +59,7 @@ class TrainConfig:
     #                                      | refgs: Ref-GS's deferred srgb(c_I + s(reflect(d, N), beta as roughness))
     env_levels: int = 7                  # refgs: mip levels of its directional grid, 2^L x 2^(L+1) texels at level 0
     lr_env: float = 0.002                # refgs: the grid's learning rate (Ref-GS's encoding_lr)
+    env_init: float = 0.05               # refgs: the specular radiance s the grid starts at, everywhere
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
     trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | prior (a segmentation model's masks in
     #                                      priors/glass/: the TSGS baseline) | gt (ground-truth glass masks, labelled)
@@ -279,6 +280,7 @@ class TrainConfig:
         need(self.t_gate_votes in ("all", "geometric"), "t_gate_votes", "use all (L_trans's opaque mask) or geometric")
         need(self.blend in ("fresnel", "envgs", "alpha", "refgs"), "blend", "use fresnel (GLINT), envgs, refgs or alpha (plain "
              "alpha compositing, the 3DGS-family baselines)")
+        need(0 < self.env_init <= 1, "env_init", "use a radiance in (0, 1]")
         need(1 <= self.env_levels <= 10, "env_levels", "use 1..10 mip levels (7: a 128 x 256 grid)")
         need(self.blend != "refgs" or self.components.replace(" ", "") == "interface", "components",
              "blend refgs shades the interface alone: use components interface")

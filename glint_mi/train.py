@@ -168,7 +168,7 @@ class Trainer:
         gs.logit_specular[:] = 0.0
         colour = gs.sh[:, 0] * cv.SH_C0 + 0.5
         gs.sh[:, 0] = ((srgb_to_linear(colour) - 0.5) / cv.SH_C0).astype(gs.sh.dtype)
-        grid = DirectionalGrid(self.cfg.env_levels)
+        grid = DirectionalGrid(self.cfg.env_levels, init=float(np.log(self.cfg.env_init)))
         self.env = np.array(grid.data, np.float32)  # channel-major flat, as the integrator holds it
         self.env_adam = (np.zeros_like(self.env), np.zeros_like(self.env), np.zeros(1))
 

@@ -41,13 +41,13 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
 class DirectionalGrid:
     """RGB log-radiance over directions, ``levels`` mip levels of a 2^levels x 2^(levels+1) lat-long map."""
 
-    def __init__(self, levels: int, values: np.ndarray | None = None):
+    def __init__(self, levels: int, values: np.ndarray | None = None, init: float = INIT_LOG_RADIANCE):
         if not 1 <= levels <= 10:
             raise ValueError(f"glint: 'env_levels' must be in 1..10 (got {levels}).")
         self.levels = int(levels)
         self.h, self.w = 2 ** self.levels, 2 ** (self.levels + 1)
         if values is None:
-            values = np.full((self.h, self.w, 3), INIT_LOG_RADIANCE, np.float32)
+            values = np.full((self.h, self.w, 3), init, np.float32)
         values = np.asarray(values, np.float32)
         if values.shape != (self.h, self.w, 3):
             raise ValueError(f"glint: the environment grid must be {self.h} x {self.w} x 3 for env_levels = "

@@ -144,7 +144,7 @@ def _read_env(filename: str):
         return None
     import numpy as np
 
-    path = mi.Thread.thread().file_resolver().resolve(filename)
+    path = mi.file_resolver().resolve(filename)
     try:
         return np.load(str(path))
     except (OSError, ValueError) as e:

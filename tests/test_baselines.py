@@ -3,10 +3,11 @@
 - ``3dgs`` (blend alpha, ellipsoid kernel): the rendered image equals Mitsuba's ``volprim_rf_basic`` at equal cut-offs
   (1e-4 on >= 95 % of pixels, mean 2e-3: volprim's fixed 1e-4 step after each hit skips Gaussians entered within
   1e-4 of the previous one), whatever the Gaussians' specular and transparency attributes are.
-- ``2dgs`` / ``pgsr`` / ``refgs`` (blend alpha, surfels): equal a float64 numpy surfel compositor (1e-4 on >= 97 % of
+- ``2dgs`` / ``pgsr`` (blend alpha, surfels): equal a float64 numpy surfel compositor (1e-4 on >= 97 % of
   rays, mean 2e-3, as in test_inside_origins).
 - GLINT without a set: the missing component's weight goes to the diffuse term, checked against the written-out
   weights and a numpy compositor of the other sets, so an ablation never loses energy.
+- ``refgs``: tests/test_refgs.py (srgb of this compositor where its grid is dark, and its deferred shading).
 """
 import json
 
@@ -31,8 +32,9 @@ def _glassy_set(rng, n, **kw):
 
 
 def test_methods_state_their_blend():
-    for m in ("3dgs", "2dgs", "pgsr", "refgs"):
+    for m in ("3dgs", "2dgs", "pgsr"):
         assert config_for(m, "tiny").blend == "alpha", m
+    assert config_for("refgs", "tiny").blend == "refgs"  # tests/test_refgs.py: its deferred shading
     assert config_for("envgs", "tiny").blend == "envgs"
     assert config_for("glint", "tiny").blend == "fresnel"
 
@@ -57,7 +59,7 @@ def test_3dgs_configuration_equals_volprim_rf_basic(rng):
     np.testing.assert_allclose(fres["rgb"], a["rgb"], atol=1e-6)
 
 
-@pytest.mark.parametrize("method", ["2dgs", "pgsr", "refgs"])
+@pytest.mark.parametrize("method", ["2dgs", "pgsr"])
 def test_surfel_baselines_equal_a_numpy_surfel_compositor(rng, method):
     cfg = config_for(method, "tiny")
     g = _glassy_set(rng, 150)
