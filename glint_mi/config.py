@@ -59,7 +59,10 @@ class TrainConfig:
     #                                      | refgs: Ref-GS's deferred srgb(c_I + s(reflect(d, N), beta as roughness))
     env_levels: int = 7                  # refgs: mip levels of its directional grid, 2^L x 2^(L+1) texels at level 0
     lr_env: float = 0.002                # refgs: the grid's learning rate (Ref-GS's encoding_lr)
-    env_init: float = 0.05               # refgs: the specular radiance s the grid starts at, everywhere
+    env_init: float = 0.001              # refgs: the specular radiance s the grid starts at, everywhere. Tuning
+    #                                      room 7301 (bench, seed 0): 30.34 dB against 23.12 for 0.05 - a bright
+    #                                      start washes every dark pixel out, and albedo pushed below 0 stops at
+    #                                      its clamp (docs/decisions.md)
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
     trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | prior (a segmentation model's masks in
     #                                      priors/glass/: the TSGS baseline) | gt (ground-truth glass masks, labelled)

@@ -22,7 +22,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-INIT_LOG_RADIANCE = math.log(0.05)  # the grid's initial value: s = 0.05 everywhere
+INIT_LOG_RADIANCE = math.log(0.001)  # the grid's initial value: s = 0.001 everywhere (TrainConfig.env_init)
 MAX_LOG = 5.0  # Ref-GS clamps the MLP's output at 5 before exp
 
 

@@ -19,10 +19,16 @@ and the same transport as a first-order reference on mesh scenes with real glass
    - |string|
    - How the components are weighted. ``fresnel`` (default): GLINT's Schlick weights. ``envgs``: EnvGS's blend
      k_s = beta, k_d = 1 - beta, k_t = 0. ``alpha``: plain front-to-back alpha compositing of the interface,
-     C = sum T_i alpha_i c_i (k_d = 1, no specular, no transparency), as 3DGS / 2DGS / PGSR / Ref-GS composite.
+     C = sum T_i alpha_i c_i (k_d = 1, no specular, no transparency), as 3DGS / 2DGS / PGSR composite. ``refgs``:
+     Ref-GS's deferred shading of the interface alone, C = srgb(c_I + s), s read from a directional grid at the
+     reflection of the composited normal, blurred by the composited beta as roughness (``glint_env``).
      A set that is absent (switched off, or dropped by a run's ``components: auto``) gives its weight to the
      diffuse term, so the image is never darkened by a missing component. The boolean ``fresnel`` of older
      scenes is read as ``fresnel`` (true) or ``envgs`` (false).
+ * - env_levels, env_file
+   - |int|, |string|
+   - ``refgs`` only: mip levels of the directional grid (2^L x 2^(L+1) texels; default 7) and the ``.npy`` of its
+     [h, w, 3] log-radiance that a trained model writes (``env.npy``; default: the initial grid).
  * - reflect_min, transmit_min
    - |float|
    - Per-ray thresholds of ``auto``. (Default: 0.05, just above F0 = 0.04, and 1e-3)
