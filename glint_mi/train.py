@@ -162,12 +162,12 @@ class Trainer:
         """Ref-GS's starting point: roughness 0.5 (its sigmoid(0); beta carries it), the albedo composited in linear
         space (the SfM colours converted, so the first image shows them), and the directional grid at its initial
         value (glint_env)."""
-        from glint_mi_plugins.glint_env import DirectionalGrid, srgb_to_linear
+        from glint_mi_plugins.glint_env import DirectionalGrid
 
         gs = self.sets["interface"]
         gs.logit_specular[:] = 0.0
         colour = gs.sh[:, 0] * cv.SH_C0 + 0.5
-        gs.sh[:, 0] = ((srgb_to_linear(colour) - 0.5) / cv.SH_C0).astype(gs.sh.dtype)
+        gs.sh[:, 0] = ((cv.srgb_to_linear(np.clip(colour, 0.0, 1.0)) - 0.5) / cv.SH_C0).astype(gs.sh.dtype)
         grid = DirectionalGrid(self.cfg.env_levels, init=float(np.log(self.cfg.env_init)))
         self.env = np.array(grid.data, np.float32)  # channel-major flat, as the integrator holds it
         self.env_adam = (np.zeros_like(self.env), np.zeros_like(self.env), np.zeros(1))

@@ -32,12 +32,6 @@ def srgb(x):
     return dr.select(x <= 0.0031308, 12.92 * x, 1.055 * dr.power(x, 1.0 / 2.4) - 0.055)
 
 
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """The inverse of :func:`srgb` on [0, 1] (numpy): a starting albedo whose composite shows the photo's colour."""
-    c = np.clip(c, 0.0, 1.0)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 class DirectionalGrid:
     """RGB log-radiance over directions, ``levels`` mip levels of a 2^levels x 2^(levels+1) lat-long map."""
 

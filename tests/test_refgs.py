@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from conftest import central_difference, make_integrator, random_set, rays, to_np
+from glint_mi.conventions import linear_to_srgb
 from glint_mi.gaussians import GaussianSet
 from glint_mi.methods import config_for
 from glint_mi_plugins.glint_env import DirectionalGrid, srgb
@@ -31,8 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _np_srgb(x):
-    x = np.clip(x, 1e-10, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+    return linear_to_srgb(np.clip(x, 1e-10, 1.0))
 
 
 def _np_lookup(values: np.ndarray, direction: np.ndarray, level: float) -> np.ndarray:
