@@ -281,8 +281,8 @@ class TrainConfig:
         need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
         need(self.no_glass in ("3dgs", "3dgs+sfm", "glint"), "no_glass", "use 3dgs, 3dgs+sfm or glint")
         need(self.t_gate_votes in ("all", "geometric"), "t_gate_votes", "use all (L_trans's opaque mask) or geometric")
-        need(self.blend in ("fresnel", "envgs", "alpha", "refgs"), "blend", "use fresnel (GLINT), envgs, refgs or alpha (plain "
-             "alpha compositing, the 3DGS-family baselines)")
+        need(self.blend in ("fresnel", "envgs", "alpha", "refgs"), "blend",
+             "use fresnel (GLINT), envgs, refgs or alpha (plain alpha compositing, the 3DGS-family baselines)")
         need(0 < self.env_init <= 1, "env_init", "use a radiance in (0, 1]")
         need(1 <= self.env_levels <= 10, "env_levels", "use 1..10 mip levels (7: a 128 x 256 grid)")
         need(self.blend != "refgs" or self.components.replace(" ", "") == "interface", "components",

@@ -223,8 +223,7 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
             from .runs import RunError
 
             raise RunError(f"{model / 'env.npy'}: a refgs model needs its directional grid; the run did not "
-                                    f"finish saving its model - resume it with `python -m glint_mi.optimize "
-                                    f"--resume {run}`.")
+                           f"finish saving its model - resume it with `python -m glint_mi.optimize --resume {run}`.")
         env = {"env_levels": cfg.env_levels, "env_file": str((model / "env.npy").resolve())}
     scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components=components,
                                              max_order=cfg.max_order, max_hits=budget, blend=cfg.blend, **env))

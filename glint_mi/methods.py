@@ -68,8 +68,9 @@ METHODS = {m.name: m for m in [
            "features and the MLP that decodes grid x features are NOT implemented, so the specular term cannot vary "
            "from place to place for one direction; the grid is 128 x 256 with 7 levels (Ref-GS: 512 x 1024, 9) and "
            "starts at 0.001 (env_init; Ref-GS's MLP starts near 0.25 over an albedo of 0.2; here the albedo starts at "
-           "the SfM colours, and at this CPU budget a bright start costs 7 dB on the tuning room); the albedo is SH degree 0 from those colours and the roughness is the interface's beta (same "
-           "sigmoid, starts at 0.5, Ref-GS's roughness lr 0.002); black background; ray-traced surfels"),
+           "the SfM colours, and at this CPU budget a bright start costs 7 dB on the tuning room); the albedo is SH "
+           "degree 0 from those colours and the roughness is the interface's beta (same sigmoid, starts at 0.5, "
+           "Ref-GS's roughness lr 0.002); black background; ray-traced surfels"),
     Method("tsgs", dict(**NOT_OURS, components="interface,transmission", trans_masks="prior", w_plausibility=0.0,
                         t_raise="free", eval_depth="first_surface", prior_layer="interface", **NORMAL_PRIOR),
            "surfels with a transparency attribute supervised by transparent masks, and the monocular normal prior",

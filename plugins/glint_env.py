@@ -97,14 +97,15 @@ class DirectionalGrid:
         return dr.exp(dr.minimum(self.lookup(direction, roughness * self.levels), MAX_LOG))
 
 
-def reflected(d, n):
-    """w_o = d - 2 (d . n) n, normalised (Ref-GS's reflect(-d, n))."""
-    return dr.normalize(d - 2.0 * dr.dot(d, n) * n)
+def reflect(d, n):
+    """The mirror direction d - 2 (d . n) n (GLINT's reflection rays; Ref-GS's w_o = reflect(-d, n) in its
+    convention)."""
+    return d - 2.0 * dr.dot(d, n) * n
 
 
 def refgs_shade(C, A, B, N, d, grid: DirectionalGrid, alpha_min: float = 0.05):
     """Ref-GS's deferred pixel: srgb(clamp(a + s, 0, 1)) where the composited alpha exceeds ``alpha_min`` (0 elsewhere,
     as its renderer leaves those pixels to the background); C = composited albedo, B = composited roughness, N =
     normalised composited normal (world), d = ray direction."""
-    s = grid.specular(reflected(d, N), B)
+    s = grid.specular(dr.normalize(reflect(d, N)), B)
     return dr.select(dr.detach(A) > alpha_min, srgb(C + s), 0.0)

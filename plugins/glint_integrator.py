@@ -116,7 +116,7 @@ from glint_mi import native
 
 from . import glint_gaussians
 from .glint_composite import Composite, GaussianSetRef, _widen  # noqa: F401  (re-exported)
-from .glint_env import DirectionalGrid, refgs_shade
+from .glint_env import DirectionalGrid, reflect, refgs_shade
 from .glint_march import KBUFFER_BYTES, GaussianPasses  # noqa: F401
 from .glint_mesh import first_surface, is_glass, trace_meshes  # noqa: F401
 
@@ -138,10 +138,6 @@ BLENDS = ("fresnel", "envgs", "alpha", "refgs")
 
 def schlick(cos_theta, f0):
     return f0 + (1.0 - f0) * dr.power(1.0 - cos_theta, 5)
-
-
-def reflect(d, n):
-    return d - 2.0 * dr.dot(d, n) * n
 
 
 def _read_env(filename: str):
