@@ -83,24 +83,36 @@ class Adam:
             m, v, n = st[f]
             if self.NATIVE and self._native_step(f, getattr(gset, f), m, v, n, grads[f], idx, scale):
                 continue
-            g = take(grads[f])
-            ns = take(n) + 1  # the moments keep their field's dtype (float32 means): rounded as stored
-            ms = (self.b1 * take(m) + (1.0 - self.b1) * g).astype(m.dtype, copy=False)
-            vs = (self.b2 * take(v) + (1.0 - self.b2) * g * g).astype(v.dtype, copy=False)
+            ns = take(n) + 1
+            ms, vs, step = self._direction(take(grads[f]), take(m), take(v), ns)
             if full:
                 n[:], m[:], v[:] = ns, ms, vs
             else:
                 n[idx], m[idx], v[idx] = ns, ms, vs
-            shape = (-1,) + (1,) * (g.ndim - 1)
-            c1 = (1.0 - self.b1 ** ns).reshape(shape)
-            c2 = (1.0 - self.b2 ** ns).reshape(shape)
-            step = (ms / c1) / (np.sqrt(vs / c2) + self.eps)
             lr = self._lr(f, scale, step.shape[1] if step.ndim > 1 else 1)
             value = getattr(gset, f)
             if full:
                 value -= (lr * step).astype(value.dtype)
             else:
                 value[idx] = take(value) - (lr * step).astype(value.dtype)
+
+    def _direction(self, g, m, v, ns):
+        """Adam's new moments after ``ns`` steps (kept in the moments' dtype - float32 means rounded as stored) and
+        its bias-corrected step, for rows of gradient ``g``."""
+        ms = (self.b1 * m + (1.0 - self.b1) * g).astype(m.dtype, copy=False)
+        vs = (self.b2 * v + (1.0 - self.b2) * g * g).astype(v.dtype, copy=False)
+        shape = (-1,) + (1,) * (g.ndim - 1)
+        c1 = (1.0 - self.b1 ** ns).reshape(shape)
+        c2 = (1.0 - self.b2 ** ns).reshape(shape)
+        return ms, vs, (ms / c1) / (np.sqrt(vs / c2) + self.eps)
+
+    def step_array(self, value: np.ndarray, grad: np.ndarray, state: tuple, lr: float) -> None:
+        """Dense Adam on one free array outside the sets (``refgs``'s directional grid, which every ray reads), in
+        place; ``state`` = (m, v, n) with n one step count for the whole array."""
+        m, v, n = state
+        n += 1
+        m[:], v[:], step = self._direction(grad, m, v, n)
+        value -= (lr * step).astype(value.dtype)
 
     def _lr(self, f: str, scale: dict, cols: int):
         """Field f's learning rate: a scalar, or for ``sh`` one per coefficient, [1, cols, 1] (dc, then the rest)."""

@@ -179,13 +179,7 @@ class Trainer:
         grid = self.integ.env
         g = np.nan_to_num(np.array(dr.grad(grid.data), np.float64), nan=0.0, posinf=0.0, neginf=0.0)
         dr.clear_grad(grid.data)
-        m, v, n = self.env_adam
-        b1, b2 = self.adam.b1, self.adam.b2
-        n += 1
-        m[:] = b1 * m + (1.0 - b1) * g
-        v[:] = b2 * v + (1.0 - b2) * g * g
-        step = (m / (1.0 - b1 ** n[0])) / (np.sqrt(v / (1.0 - b2 ** n[0])) + self.cfg.adam_eps)
-        self.env -= (self.cfg.lr_env * self.cfg.lr_multiplier * step).astype(np.float32)
+        self.adam.step_array(self.env, g, self.env_adam, self.cfg.lr_env * self.cfg.lr_multiplier)
         self._push_env()
 
     def _push_env(self):
