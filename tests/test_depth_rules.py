@@ -75,6 +75,22 @@ def test_median_of_hit_lists_equals_the_integrators_median(rng):
     np.testing.assert_allclose(med[~crossed], expected[~crossed], rtol=1e-6)  # 2DGS's median needs T <= 0.5
 
 
+def _interface_transmittance(integ, view, pixels):
+    """For the selected pixels of ``view``: the interface pass's running transmittance [n, K + 1] in float64, from
+    the pass's hit list (1 before the first hit), and the rendered alpha."""
+    from glint_mi.evaluate import pixel_rays
+
+    dd = pixel_rays(view).astype(np.float32)[pixels.reshape(-1)]
+    o, f = view.c2w[:3, 3].astype(np.float32), view.c2w[:3, 2]
+    ray = mi.Ray3f(mi.Point3f(*[mi.Float(np.full(len(dd), x)) for x in o]),
+                   mi.Vector3f(*[mi.Float(np.ascontiguousarray(dd[:, i])) for i in range(3)]))
+    fwd = mi.Vector3f(*[float(x) for x in f])
+    with dr.suspend_grad():
+        out = integ.trace(ray, mi.Bool(True), forward=fwd, record=True)
+    alpha, _, _ = R.interface_hits(integ, ray, fwd, out["_lists"][0])
+    return np.cumprod(np.c_[np.ones(len(alpha)), 1.0 - alpha], axis=1), np.array(out["alpha"], np.float64)
+
+
 def test_evaluation_reports_each_methods_depth(tmp_path):
     """The same trained room evaluated with each rule: median and first_surface change the depth where their rules
     say and nowhere else; first_surface reads the test views' masks, and a missing mask is refused by name."""
@@ -100,7 +116,15 @@ def test_evaluation_reports_each_methods_depth(tmp_path):
     alpha = res["expected"]["renders"][views[0].name]["alpha"]
     opaque = (gt_glass < 0.5) & (alpha >= 0.5)  # TSGS's opaque pixels where T falls to 0.5: 2DGS's median
     assert opaque.mean() > 0.2
-    np.testing.assert_allclose(d["first_surface"][opaque], d["median"][opaque], rtol=1e-5, atol=1e-6)
+    # The integrator's median is a float32 running product T *= 1 - alpha (and alpha a float32 sum of weights); the
+    # numpy rule reads the same hits in float64. Where T passes 0.5 within float32 rounding (256 factors x 6e-8, a
+    # few 1e-6) the two may pick neighbouring hits: such ties are allowed (rare: one pixel in ~3,000 seen once, none
+    # in 470,000 on this machine), any other difference fails.
+    T, a = _interface_transmittance(tr.integ_for_eval(), views[0], opaque)
+    np.testing.assert_allclose(T[:, -1], 1.0 - a, atol=2e-5)  # the hit lists hold what the render composited
+    margin = np.minimum(np.abs(T - 0.5).min(axis=1), np.abs(a - 0.5))
+    differ = ~np.isclose(d["first_surface"][opaque], d["median"][opaque], rtol=1e-5, atol=1e-6)
+    assert differ.mean() < 1e-3 and np.all(margin[differ] < 2e-5), (np.nonzero(differ), margin[differ])
     cfg = TrainConfig.for_preset("tiny", eval_depth="first_surface")
     with pytest.raises(DatasetError, match="priors/glass"):
         eval_options(cfg, tmp_path)["glass_of"](views[0])
