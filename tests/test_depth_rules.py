@@ -79,11 +79,11 @@ def _interface_transmittance(integ, view, pixels):
     """For the selected pixels of ``view``: the interface pass's running transmittance [n, K + 1] in float64, from
     the pass's hit list (1 before the first hit), and the rendered alpha."""
     from glint_mi.evaluate import pixel_rays
+    from glint_mi.render import floats
 
     dd = pixel_rays(view).astype(np.float32)[pixels.reshape(-1)]
     o, f = view.c2w[:3, 3].astype(np.float32), view.c2w[:3, 2]
-    ray = mi.Ray3f(mi.Point3f(*[mi.Float(np.full(len(dd), x)) for x in o]),
-                   mi.Vector3f(*[mi.Float(np.ascontiguousarray(dd[:, i])) for i in range(3)]))
+    ray = mi.Ray3f(mi.Point3f(*floats(np.broadcast_to(o, dd.shape))), mi.Vector3f(*floats(dd)))
     fwd = mi.Vector3f(*[float(x) for x in f])
     with dr.suspend_grad():
         out = integ.trace(ray, mi.Bool(True), forward=fwd, record=True)
