@@ -169,26 +169,21 @@ class Trainer:
         colour = gs.sh[:, 0] * cv.SH_C0 + 0.5
         gs.sh[:, 0] = ((cv.srgb_to_linear(np.clip(colour, 0.0, 1.0)) - 0.5) / cv.SH_C0).astype(gs.sh.dtype)
         grid = DirectionalGrid(self.cfg.env_levels, init=float(np.log(self.cfg.env_init)))
-        self.env = np.array(grid.data, np.float32)  # channel-major flat, as the integrator holds it
+        self.env = grid.data.copy()  # channel-major flat, as the integrator holds it
         self.env_adam = (np.zeros_like(self.env), np.zeros_like(self.env), np.zeros(1))
 
     def _env_step(self):
         """Dense Adam on the refgs grid (every ray reads it), then back to the integrator with gradients on."""
-        import drjit as dr
-
         grid = self.integ.env
-        g = np.nan_to_num(np.array(dr.grad(grid.data), np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-        dr.clear_grad(grid.data)
+        g = np.nan_to_num(grid.grad(), nan=0.0, posinf=0.0, neginf=0.0)
+        grid.clear_grad()
         self.adam.step_array(self.env, g, self.env_adam, self.cfg.lr_env * self.cfg.lr_multiplier)
         self._push_env()
 
     def _push_env(self):
-        import drjit as dr
-        import mitsuba as mi
-
         grid = self.integ.env
-        grid.data = mi.Float(self.env)
-        dr.enable_grad(grid.data)
+        grid.data = self.env
+        grid.enable_grad()
 
     def _set_budget(self):
         """epochs -> iterations from the training set's size (recomputed identically on resume)."""

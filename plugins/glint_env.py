@@ -11,8 +11,12 @@ with the roughness's blur. The grid is a latitude-longitude map of 2^L x 2^(L+1)
 +z axis) with L mip levels made by 2 x 2 averaging of the level above, read bilinearly (wrapping in longitude) and
 linearly between levels, as nvdiffrast's trilinear texture lookup that Ref-GS uses.
 
-Everything is Dr.Jit arithmetic on one flat ``mi.Float`` (channel-major, level 0): gradients reach the grid, the
-roughness and the normal through AD (the integrator differentiates its shading head with AD on the composites).
+The grid's values are level 0 (``data``, numpy, channel-major). Its whole pyramid, every level, is one flat
+``mi.Float`` (``mips``) made in numpy whenever level 0 is set: the lookup gathers from it, and it is the AD leaf of
+the grid. The gradient of level 0 is the pyramid's transpose applied to the gradient of ``mips`` (:meth:`grad`; a
+texel of level k averages 4^k texels of level 0). Building the levels with Dr.Jit gathers instead made a chain of
+kernels whose backward launched about 110 kernels per training step. Gradients reach the roughness and the normal
+through AD (the integrator differentiates its shading head with AD on the composites).
 """
 from __future__ import annotations
 
@@ -40,34 +44,60 @@ class DirectionalGrid:
             raise ValueError(f"glint: 'env_levels' must be in 1..10 (got {levels}).")
         self.levels = int(levels)
         self.h, self.w = 2 ** self.levels, 2 ** (self.levels + 1)
+        self.sizes = [(self.h >> k, self.w >> k) for k in range(self.levels)]
+        starts = np.cumsum([0] + [3 * h * w for h, w in self.sizes])
+        self.offsets = [int(x) for x in starts[:-1]]  # where level k begins in ``mips`` (channel-major inside)
         if values is None:
             values = np.full((self.h, self.w, 3), init, np.float32)
+        self.set_numpy(values)
+
+    @property
+    def data(self) -> np.ndarray:
+        """Level 0, channel-major flat float32 (3 h w), as a trained model's checkpoint holds it."""
+        return self._data
+
+    @data.setter
+    def data(self, values) -> None:
+        """Set level 0 (channel-major flat, numpy or mi.Float) and rebuild ``mips`` (no gradient on it)."""
+        values = np.array(values, np.float32).reshape(-1)
+        if values.size != 3 * self.h * self.w:
+            raise ValueError(f"glint: the environment grid holds {3 * self.h * self.w} values for env_levels = "
+                             f"{self.levels} (got {values.size}).")
+        self._data = values
+        chans = values.astype(np.float64).reshape(3, self.h, self.w)
+        levels = [chans]
+        for _ in range(1, self.levels):
+            c = levels[-1]
+            levels.append(0.25 * (c[:, 0::2, 0::2] + c[:, 0::2, 1::2] + c[:, 1::2, 0::2] + c[:, 1::2, 1::2]))
+        self.mips = mi.Float(np.concatenate([x.ravel() for x in levels]).astype(np.float32))
+
+    def numpy(self) -> np.ndarray:
+        """[h, w, 3] log-radiance."""
+        return self._data.reshape(3, self.h, self.w).transpose(1, 2, 0).copy()
+
+    def set_numpy(self, values: np.ndarray) -> None:
         values = np.asarray(values, np.float32)
         if values.shape != (self.h, self.w, 3):
             raise ValueError(f"glint: the environment grid must be {self.h} x {self.w} x 3 for env_levels = "
                              f"{self.levels} (got {values.shape}).")
-        self.data = mi.Float(np.ascontiguousarray(values.transpose(2, 0, 1)).ravel())  # channel-major
+        self.data = np.ascontiguousarray(values.transpose(2, 0, 1)).ravel()  # channel-major
 
-    def numpy(self) -> np.ndarray:
-        """[h, w, 3] log-radiance."""
-        return np.array(self.data, np.float32).reshape(3, self.h, self.w).transpose(1, 2, 0)
+    def enable_grad(self) -> None:
+        dr.enable_grad(self.mips)
 
-    def set_numpy(self, values: np.ndarray) -> None:
-        self.data = mi.Float(np.ascontiguousarray(np.asarray(values, np.float32).transpose(2, 0, 1)).ravel())
+    def grad(self) -> np.ndarray:
+        """d/d(level 0) (channel-major flat, float64) of what was back-propagated into ``mips``: each level's
+        gradient, coarsest first, spread over the 2 x 2 texels it averages (x 0.25) and added to the finer one's."""
+        g = np.array(dr.grad(self.mips), np.float64)
+        acc = None
+        for k in range(self.levels - 1, -1, -1):
+            h, w = self.sizes[k]
+            gk = g[self.offsets[k]:self.offsets[k] + 3 * h * w].reshape(3, h, w)
+            acc = gk if acc is None else gk + 0.25 * np.repeat(np.repeat(acc, 2, axis=1), 2, axis=2)
+        return acc.ravel()
 
-    def pyramid(self):
-        """[(channels (3 Floats of h_k w_k), h_k, w_k)] for k = 0 .. levels - 1; coarser levels average 2 x 2."""
-        n = self.h * self.w
-        out = [(tuple(dr.gather(mi.Float, self.data, dr.arange(mi.UInt32, n) + c * n) for c in range(3)),
-                self.h, self.w)]
-        for _ in range(1, self.levels):
-            chans, h, w = out[-1]
-            h2, w2 = h // 2, w // 2
-            i = dr.arange(mi.UInt32, h2 * w2)
-            y, x = i // w2, i % w2
-            taps = [(2 * y + dy) * w + 2 * x + dx for dy in (0, 1) for dx in (0, 1)]
-            out.append((tuple(0.25 * sum(dr.gather(mi.Float, ch, t) for t in taps) for ch in chans), h2, w2))
-        return out
+    def clear_grad(self) -> None:
+        dr.clear_grad(self.mips)
 
     def lookup(self, direction, level):
         """Trilinear read at unit ``direction`` (world) and fractional mip ``level`` in [0, levels - 1]."""
@@ -76,7 +106,7 @@ class DirectionalGrid:
         v = dr.acos(z) / dr.pi  # colatitude in [0, 1]
         level = dr.clip(level, 0.0, self.levels - 1.0)
         acc = mi.Color3f(0.0)
-        for k, (chans, h, w) in enumerate(self.pyramid()):
+        for k, (h, w) in enumerate(self.sizes):
             wk = dr.maximum(0.0, 1.0 - dr.abs(level - k))
             xf, yf = u * w - 0.5, v * h - 0.5
             x0, y0 = dr.floor(xf), dr.floor(yf)
@@ -88,7 +118,8 @@ class DirectionalGrid:
             yi1 = dr.clip(mi.Int32(y0) + 1, 0, h - 1)
             idx = [(yi0 * w + xi0, (1 - fx) * (1 - fy)), (yi0 * w + xi1, fx * (1 - fy)),
                    (yi1 * w + xi0, (1 - fx) * fy), (yi1 * w + xi1, fx * fy)]
-            val = [sum(dr.gather(mi.Float, ch, mi.UInt32(i)) * wt for i, wt in idx) for ch in chans]
+            val = [sum(dr.gather(mi.Float, self.mips, mi.UInt32(i + self.offsets[k] + c * h * w)) * wt
+                       for i, wt in idx) for c in range(3)]
             acc += wk * mi.Color3f(*val)
         return acc
 
