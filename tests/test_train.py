@@ -417,7 +417,7 @@ def test_adam_equals_the_row_masked_formulation_bit_for_bit(rng, monkeypatch, na
     assert len(calls) == (40 * len(RAW_FIELDS) if native_step else 0)
 
 
-def test_dense_array_step_is_the_same_in_numpy_and_native(rng, monkeypatch):
+def test_dense_array_step_is_the_same_in_numpy_and_native(monkeypatch):
     """Adam.step_array (refgs's directional grid): glint_mi.native's row update and the numpy arithmetic give the
     same values and moments bit for bit over 30 steps (gradients with zeros, as texels no ray reads)."""
     from glint_mi import native
