@@ -614,9 +614,8 @@ class Trainer:
             f'        </shape>' for r in sets)
         env = ""
         if self.env is not None:  # refgs: the directional grid, [h, w, 3] log-radiance
-            grid = self.integ.env
             buf = io.BytesIO()
-            np.save(buf, self.env.reshape(3, grid.h, grid.w).transpose(1, 2, 0))
+            np.save(buf, self.integ.env.numpy())  # what _push_env last sent: self.env as [h, w, 3]
             atomic_write_bytes(model / "env.npy", buf.getvalue())
             env = (f'        <integer name="env_levels" value="{self.cfg.env_levels}"/>\n'
                    f'        <string name="env_file" value="env.npy"/>\n')

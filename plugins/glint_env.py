@@ -14,9 +14,9 @@ linearly between levels, as nvdiffrast's trilinear texture lookup that Ref-GS us
 The grid's values are level 0 (``data``, numpy, channel-major). Its whole pyramid, every level, is one flat
 ``mi.Float`` (``mips``) made in numpy whenever level 0 is set: the lookup gathers from it, and it is the AD leaf of
 the grid. The gradient of level 0 is the pyramid's transpose applied to the gradient of ``mips`` (:meth:`grad`; a
-texel of level k averages 4^k texels of level 0). Building the levels with Dr.Jit gathers instead made a chain of
-kernels whose backward launched about 110 kernels per training step. Gradients reach the roughness and the normal
-through AD (the integrator differentiates its shading head with AD on the composites).
+texel of level k averages 4^k texels of level 0), so the backward is one scatter per read rather than a kernel
+chain through the levels. Gradients reach the roughness and the normal through AD (the integrator differentiates its
+shading head with AD on the composites).
 """
 from __future__ import annotations
 

@@ -218,7 +218,9 @@ def test_refgs_trains_resumes_and_saves_its_grid(tmp_path, monkeypatch):
     from glint_mi.evaluate import load_model
 
     integ = load_model(tmp_path / "a", a.cfg)
-    assert np.array_equal(integ.env.numpy(), np.load(tmp_path / "a" / "model" / "env.npy"))
+    saved = np.load(tmp_path / "a" / "model" / "env.npy")
+    assert np.array_equal(saved.transpose(2, 0, 1).ravel(), a.env)  # the trainer's grid, as [h, w, 3]
+    assert np.array_equal(integ.env.numpy(), saved)
     from glint_mi.evaluate import evaluate
 
     m_live = evaluate(a.integ_for_eval(), a.ds.test_views, write=False)["metrics"]
