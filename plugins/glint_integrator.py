@@ -442,9 +442,7 @@ class GlintIntegrator(GaussianPasses):
                     return Composite()
                 info = {}
                 acc = self.march(gs, *args, ad=ad, record=record, info=info, **kw)
-                lists.append(info["list"])
-                if record:  # the loop's scatters run when it is evaluated: evaluate its totals in the same kernel
-                    dr.eval(acc, info["list"])
+                lists.append(info["list"])  # (march evaluated the pass: its scatters ran with its totals)
                 return acc
 
             I = march(intf, o, d, active)

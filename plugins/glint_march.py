@@ -128,6 +128,12 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
             listed = dr.zeros(mi.UInt32, n_rays * self.max_hits)
         march = self._march_kbuffer if (self.kbuffer and not ad) else self._march_bvh
         acc, hits, count = march(gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot)
+        if march == self._march_bvh:
+            # One kernel per set: every set is its own scene, and OptiX (cuda variants) takes one shader binding
+            # table per kernel, dropping the queries of any other scene in it. So the pass is evaluated here (its
+            # totals or ray adjoints, its hit list, and in a replay its gradients' scatters), before a later pass
+            # of another set can join its kernel (tests/test_kernels.py). The k-buffer rounds are evaluated anyway.
+            dr.eval(acc, hits, listed, count)
         if info is not None:
             info["hits"] = hits
             info["list"] = (listed, count) if record else None
