@@ -149,6 +149,9 @@ def main():
         return memory_probe(name, int(n), tuple(int(v) for v in res.split("x")), what)
     counts = [500] if args.tiny else [1000, 10000] if args.quick else [1000, 10000, 50000]
     resolutions = [(32, 24)] if args.tiny else [(128, 96)] if args.quick else [(128, 96), (256, 192)]
+    from glint_mi.machine import describe
+
+    dev = describe()
     rows = []
     for n in counts:
         for res in resolutions:
@@ -165,6 +168,7 @@ def main():
                              "grad_ms": 1e3 * bwd, "grad_ns_per_ray": 1e9 * bwd / rays})
             ref = next(r for r in rows[-len(cfg):] if r["config"] == "glint interface only")
             for r in rows[-len(cfg):]:
+                r.update(variant=dev["variant"], device=dev["device"])
                 r["fwd_vs_interface"] = r["forward_ms"] / ref["forward_ms"]
                 r["grad_vs_interface"] = r["grad_ms"] / ref["grad_ms"]
             print(f"done {n} Gaussians at {res}", flush=True)

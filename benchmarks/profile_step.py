@@ -40,6 +40,7 @@ import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
 from glint_mi.config import TrainConfig  # noqa: E402
+from glint_mi.machine import describe, summary  # noqa: E402
 from glint_mi.optimize import parse_sets  # noqa: E402
 from glint_mi.render import floats  # noqa: E402
 from glint_mi.scene import read_scene  # noqa: E402
@@ -207,7 +208,7 @@ def markdown(name, tr, plain, prof, n, trav, before_after=None, only: str = "") 
     lines = [f"### {name}", "",
              f"{rays} rays per step; Gaussians: " + ", ".join(f"{r} {len(s)}" for r, s in tr.sets.items()
                                                                if r not in tr.dropped)
-             + f"; stage '{tr.stage()['name']}' (iteration {tr.it} of {tr.cfg.iterations}).", "",
+             + f"; stage '{tr.stage()['name']}' (iteration {tr.it} of {tr.cfg.iterations}). Machine: {summary()}.", "",
              f"Unprofiled step: **{1e3 * step:.0f} ms** (median of {len(plain)}) = **{rays / step:.0f} rays/s**; "
              f"profiled (a sync between phases): {1e3 * prof_total:.0f} ms.", "",
              "| phase | ms / step | share | kernels ms | compile ms | host ms | launches / step |",
@@ -291,7 +292,8 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     (out / f"profile_step_{name}.md").write_text(text + "\n")
     (out / f"profile_step_{name}.json").write_text(json.dumps(
-        {"name": name, "rays_per_step": tr.cfg.patches * tr.cfg.patch ** 2, "step_s": plain,
+        {"name": name, **{k: v for k, v in describe().items() if k in ("variant", "device", "cpu", "cores")},
+         "rays_per_step": tr.cfg.patches * tr.cfg.patch ** 2, "step_s": plain,
          "phases": {k: dict(v) for k, v in prof.rows.items()}, "steps": args.steps, "traversal": trav,
          "before_after_step_s": before_after,
          "gaussians": {r: len(s) for r, s in tr.sets.items() if r not in tr.dropped}}, indent=1))

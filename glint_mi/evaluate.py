@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import sys
 import time
 from pathlib import Path
@@ -113,17 +112,10 @@ def save_renders(folder: Path, name: str, b: dict) -> None:
 
 
 def machine() -> str:
-    import os
+    """The machine line of ``metrics.json`` (:func:`glint_mi.machine.summary`)."""
+    from .machine import summary
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, {platform.system()}, Dr.Jit LLVM"
+    return summary()
 
 
 def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: float | None = None,
@@ -140,7 +132,11 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
 
     out_dir = Path(out_dir) if (write and out_dir is not None) else None
     per_view, renders, seconds = {}, {}, []
-    res = {"resolution": [views[0].width, views[0].height], "machine": machine(), "train_s": train_s}
+    from .machine import describe
+
+    dev = describe()
+    res = {"resolution": [views[0].width, views[0].height], "machine": machine(), "variant": dev["variant"],
+           "device": dev["device"], "train_s": train_s}
 
     def result(done_all: bool) -> dict:
         timed = seconds[1:] if len(seconds) > 1 else seconds

@@ -90,6 +90,9 @@ class Trainer:
             self._load_checkpoint()
         else:
             self._fresh()
+        from .machine import describe
+
+        self.report["machine"] = describe()  # where this run (its latest segment, when resumed) trained
         cfg = self.cfg
         if cfg.eval_depth == "first_surface":  # TSGS's depth reads each test view's mask: refuse before training
             glass_of = eval_options(cfg, self.ds.root)["glass_of"]

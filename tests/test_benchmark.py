@@ -31,6 +31,8 @@ def test_benchmark_tiny(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     rows = list(csv.DictReader(open(out / "results.csv")))
     assert [(x["method"], x["scene"]) for x in rows] == [("2dgs", "scene_000"), ("envgs", "scene_000")]
+    from glint_mi.machine import describe
+    assert {(x["variant"], x["device"]) for x in rows} == {(describe()["variant"], describe()["device"])}
     table = (out / "table.md").read_text()
     for x in rows:  # the markdown table shows the CSV's numbers
         assert f"| {x['method']} | {float(x['fps']):.4g} | {float(x['train_s']):.4g} | {float(x['psnr']):.4g} |" \

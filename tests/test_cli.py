@@ -20,6 +20,12 @@ def test_demo_runs_on_bundled_scene(tmp_path):
     run = tmp_path / "run"
     metrics = json.loads((run / "metrics.json").read_text())
     assert np.isfinite(metrics["metrics"]["psnr"]) and metrics["metrics"]["psnr"] > 5  # a 30-iteration smoke run
+    # where the figures came from: the variant and the device that ran it, in metrics.json and report.json
+    from glint_mi.machine import describe
+    here = describe()
+    report = json.loads((run / "report.json").read_text())
+    for rec in (metrics, report["machine"]):
+        assert (rec["variant"], rec["device"]) == (here["variant"], here["device"]), rec
     import mitsuba as mi
     buf = np.array(mi.Bitmap(str(run / "renders" / "view_000.exr")))
     assert buf.shape[:2] == (54, 96) and np.isfinite(buf).all()
