@@ -88,6 +88,8 @@ class TrainConfig:
     stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
     #                                      the BVH queries (exact: same hits and arithmetic; rays x max_hits x 4 B
     #                                      per pass); false = re-trace (benchmarks/profile_step.py compares)
+    stored_hits_mb: float = 1024.0       # cap on a batch's stored lists (rays x max_hits x 4 B x 5 passes): a larger
+    #                                      batch re-traces in the replay instead (the same gradients)
     lr_multiplier: float = 1.0           # x every learning rate (ray batches see each Gaussian less often)
     # losses (method section 3); a weight of 0 switches a term off
     w_l1: float = 1.2
@@ -258,6 +260,7 @@ class TrainConfig:
         need(isinstance(self.epochs, (int, float)) and self.epochs >= 0, "epochs",
              "must be >= 0 (rays per training pixel; 0 = use iterations)")
         need(self.patches >= 1, "patches", "must be >= 1")
+        need(self.stored_hits_mb >= 0, "stored_hits_mb", "must be >= 0 MiB (0: the replay always re-traces)")
         need(isinstance(self.downscale, int) and self.downscale >= 1, "downscale",
              "must be an integer >= 1 (4 = a quarter of the width and height)")
         need(self.patch >= 3, "patch", "must be >= 3 (D-SSIM and normal consistency work on patches)")

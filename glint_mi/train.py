@@ -306,7 +306,9 @@ class Trainer:
         need = {"trans_direct"} if "transmission" in st["traced"] else set()
         active = mi.Bool(True)
         with phase("forward"):
-            out = self.integ.trace(ray, active, need=need, forward=fwd, record=c.stored_hits)
+            # stored lists while they fit the cap (a batch of 1M rays would need 5 GB at 256 hits): else re-trace
+            record = c.stored_hits and self.integ.lists_fit(dr.width(ray), c.stored_hits_mb)
+            out = self.integ.trace(ray, active, need=need, forward=fwd, record=record)
             dr.eval(out["_passes"], out.get("_lists"))
         full = budget_full(out, c.max_hits)
         with phase("objective"):

@@ -271,6 +271,12 @@ class GlintIntegrator(GaussianPasses):
         s = self.sets.get(role)
         return s if (s is not None and not s.empty and role in self.enabled) else None
 
+    def lists_fit(self, n_rays: int, budget_mb: float | None = None) -> bool:
+        """Whether the stored hit lists of ``n_rays`` rays (n_rays x max_hits x 4 bytes for each of up to five passes)
+        fit in ``budget_mb`` MiB (default: ``stored_hits_mb``); a batch that does not re-traces in the replay."""
+        budget_mb = self.stored_hits_mb if budget_mb is None else budget_mb
+        return n_rays * self.max_hits * 4 * 5 <= budget_mb * 2 ** 20
+
     def aov_names(self):
         return [name for g in self.aov_groups for name in AOV_GROUPS[g]]
 
@@ -345,7 +351,7 @@ class GlintIntegrator(GaussianPasses):
                 dL, daovs = dr.grad(L), dr.grad(aovs)
             film.clear()
             ray = mi.Ray3f(dr.detach(ray))
-            record = dr.width(ray) * self.max_hits * 4 * 5 <= self.stored_hits_mb * 2 ** 20
+            record = self.lists_fit(dr.width(ray))
             out = self.trace(ray, mi.Bool(True), need=set(self.aov_groups), record=record)
             adjoints, k = {"rgb": dL}, 0
             for g in self.aov_groups:

@@ -13,6 +13,20 @@ from glint_mi.gaussians import GaussianSet  # noqa: E402
 from glint_mi_plugins.glint_gaussians import make_shape  # noqa: E402
 
 
+LLVM = mi.variant().startswith("llvm")
+# the integrator's traversal "auto" picks the native k-buffer where the library is built and the variant is LLVM
+KBUFFER = LLVM and __import__("glint_mi.native", fromlist=["load"]).load() is not None
+
+
+def llvm_only(why: str):
+    """Skip a test on other variants (``GLINT_VARIANT=cuda_ad_rgb``), saying why it needs the LLVM backend."""
+    return pytest.mark.skipif(not LLVM, reason=f"{why}: needs an LLVM variant (running {mi.variant()})")
+
+
+# bit-for-bit runs: on one LLVM thread the gradient atomics sum in a fixed order; a GPU's atomics do not
+BITWISE = llvm_only("bit-for-bit equality of two runs on one Dr.Jit thread")
+
+
 def random_set(rng, n, center=(0, 0, 0), spread=(1, 1, 0.2), scale=(0.1, 0.3), **kw):
     kw.setdefault("opacities", rng.uniform(0.3, 0.9, n))
     kw.setdefault("colors", rng.uniform(0, 1, (n, 3)))

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from conftest import KBUFFER
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -62,14 +64,13 @@ def test_pass_breakdown_script_runs():
     hold x_I (more reflection hits with it than without), and the lane-efficiency formula on a known case."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from bench_passes import lane_efficiency
-    from glint_mi import native
     assert lane_efficiency([1, 1, 1, 3], 4) == 0.5 and lane_efficiency([2, 2, 0, 0, 5], 2) == 9 / 14
     r = subprocess.run([sys.executable, "benchmarks/bench_passes.py", "--gaussians", "300", "--res", "32x24"],
                        capture_output=True, text=True, cwd=ROOT, timeout=900)
     assert r.returncode == 0, r.stderr
     rows = [line.split("|")[1:-1] for line in r.stdout.splitlines() if line.startswith("| ") and "---" not in line]
     table = {(c[0].strip(), c[1].strip()): c for c in rows[1:]}
-    labels = ("kbuffer", "bvh", "bvh, no walk back") if native.load() else ("bvh", "bvh, no walk back")
+    labels = ("kbuffer", "bvh", "bvh, no walk back") if KBUFFER else ("bvh", "bvh, no walk back")
     assert set(table) == {(p, t) for p in ("camera", "reflection", "transmission") for t in labels}
     assert float(table["reflection", "bvh"][4]) > float(table["reflection", "bvh, no walk back"][4])
     assert "shuffled" in table["camera", "bvh"][6] and "x the camera pass" in r.stdout

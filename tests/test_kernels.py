@@ -16,10 +16,9 @@ import pytest
 
 from glint_mi import examples
 
-from conftest import make_integrator, rays
+from conftest import llvm_only, make_integrator, rays
 
-pytestmark = pytest.mark.skipif(not mi.variant().startswith("llvm"),
-                                reason="reads LLVM kernel IR (the check of the kernels cuda variants also build)")
+pytestmark = llvm_only("reads LLVM kernel IR (the same kernels a cuda variant builds and OptiX would reject)")
 
 # a ray query in LLVM IR: call void %fn(ptr %args, ptr %scene, ptr %ctx, ptr %hit)
 _TRACE = re.compile(r"call void %\w+\(ptr [^,]+, ptr (%\w+), ptr [^,]+, ptr [^)]+\)")

@@ -4,6 +4,11 @@ import pytest
 
 from glint_mi import _llvm
 
+from conftest import LLVM
+
+pytestmark = pytest.mark.skipif(not LLVM, reason="checks the LLVM library the llvm variants load (a cuda run may have "
+                                "none)")
+
 
 def test_loaded_llvm_is_usable():
     assert _llvm.check_llvm() >= (17,)

@@ -14,10 +14,13 @@ from scipy.spatial.transform import Rotation
 import drjit as dr
 import mitsuba as mi
 
-from conftest import camera, make_integrator, random_set
+from conftest import LLVM, camera, make_integrator, random_set
 from glint_mi import native
 
 needs_native = pytest.mark.skipif(native.load() is None, reason=f"glint_mi.native not built: {native.why_not()}")
+# the native traversal reads rays from host memory, so the integrator uses it on LLVM variants only
+pytestmark = pytest.mark.skipif(not LLVM, reason=f"the native k-buffer traversal: LLVM variants only (running "
+                                                 f"{mi.variant()})")
 
 
 def _shells(rng, n):

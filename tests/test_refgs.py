@@ -21,7 +21,7 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from conftest import central_difference, make_integrator, random_set, rays, to_np
+from conftest import BITWISE, central_difference, make_integrator, random_set, rays, to_np
 from glint_mi.conventions import linear_to_srgb
 from glint_mi.gaussians import GaussianSet
 from glint_mi.methods import config_for
@@ -183,6 +183,7 @@ def test_refgs_gradients_match_finite_differences(rng):
     assert checked == 7
 
 
+@BITWISE
 def test_refgs_trains_resumes_and_saves_its_grid(tmp_path, monkeypatch):
     from glint_mi.dataset.generate import Preset, make_scene
     from glint_mi.scene import read_scene, scene_xml
