@@ -64,6 +64,7 @@ def decide(self, st) -> None:  # self: the Trainer
     for role, at in decide_at.items():
         if role not in self.sets or role in self.report["components"] or self.it + 1 != at:
             continue
+        self.settle()  # the statistics of the steps not logged yet
         share = np.mean([h.get(f"share_{role}", 0.0) for h in recent]) if recent else 0.0
         if role == "transmission":
             # the mask's coverage swings between batches and with opacity resets (0 - 9 % within 200

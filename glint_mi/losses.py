@@ -240,13 +240,17 @@ def _leaf(x):
     return y
 
 
-def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: float):
+def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: float, read: bool = True):
     """The training objective on one ray batch (glint-method.md section 3): every term that the stage ``st``
     switches on, weighted by the config ``c``, on the buffers ``out`` traced for the batch ``b``.
 
     Returns (terms: weighted value per name of LOSS_NAMES, adjoints: per traced buffer, for the integrator's
     replay, stats: L_trans mask coverage and each component's share of the image energy, and with ``t_raise:
-    masks`` the rays where t may rise, for the replay)."""
+    masks`` the rays where t may rise, for the replay).
+
+    The terms and the statistics are reduced on the device. ``read`` (default) returns them as floats; with
+    ``read=False`` they stay width-1 Dr.Jit arrays, scheduled for the next evaluation (the backward's), so a training
+    step reads nothing back until it is logged (:func:`read_values`)."""
     from .batch import patch_neighbours
     from .render import aligned, floats
 
@@ -355,16 +359,58 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         for k, v in leaves.items():
             adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
         for k, v in parts.items():
-            terms[k] = float(v[0]) if dr.width(v) else 0.0
-        terms["total"] = float(total[0])
-    # what each component contributes (evidence for components: auto)
-    w = out["weights"]
-    lum = lambda x: np.asarray(x).mean(0) if np.asarray(x).ndim == 2 else np.asarray(x)
-    img_e = max(float(lum(np.array(out["rgb"])).mean()), 1e-6)
-    stats["share_reflection"] = float(np.mean(np.array(w[1]) * lum(np.array(out["reflection"])))) / img_e
-    stats["share_transmission"] = float(np.mean(np.array(w[2]) * lum(np.array(out["transmission"])))) / img_e
-    stats.update(component_gains(b, out))
+            terms[k] = dr.detach(v)
+        terms["total"] = dr.detach(total)
+    stats.update(component_stats(out, gt))  # what each component contributes (evidence for components: auto)
+    values = {**terms, **{k: v for k, v in stats.items() if k != "t_raise"}}
+    if read:
+        for k, v in read_values(values).items():
+            (terms if k in terms else stats)[k] = v
+    else:
+        dr.schedule(*[v for v in values.values() if isinstance(v, dr.ArrayBase)])
     return terms, adjoints, stats
+
+
+def read_values(values: dict) -> dict:
+    """Width-1 Dr.Jit values (and plain numbers) -> floats, evaluated together."""
+    arrays = [v for v in values.values() if isinstance(v, dr.ArrayBase)]
+    if arrays:
+        dr.eval(*arrays)
+    return {k: (float(v[0]) if dr.width(v) else 0.0) if isinstance(v, dr.ArrayBase) else float(v)
+            for k, v in values.items()}
+
+
+def _lum(c):
+    """Per ray, the mean of a colour's channels (a scalar 0 for a pass that was not traced)."""
+    c = mi.Color3f(c)
+    return (c.x + c.y + c.z) / 3.0
+
+
+def component_stats(out: dict, gt) -> dict:
+    """On the device (width-1 Dr.Jit arrays, nothing read back): each secondary set's share of the image energy,
+    share_X = mean(k_X lum(c_X)) / mean(lum(C)), and its gain, how much it improves the batch's photometric fit: the
+    relative increase of the mean L1 error when its weight went to the interface instead (what dropping it would do,
+    before the interface adapts), gain_X = (E without X - E) / E, E = mean |C - photo| over the rays where the
+    interface is a surface (accumulated alpha >= 0.5; right after an opacity reset the 4 % Fresnel floor lets c_R
+    brighten a dark, uncovered image); NaN where no ray is a surface. Only traced sets have a gain. Equal to the
+    float64 numpy definitions in tests/test_objective.py to float32 rounding."""
+    w = out["weights"]
+    C = mi.Color3f(out["rgb"])
+    img_e = dr.maximum(dr.mean(_lum(C)), 1e-6)
+    stats = {"share_reflection": dr.mean(w[1] * _lum(out["reflection"])) / img_e,
+             "share_transmission": dr.mean(w[2] * _lum(out["transmission"])) / img_e}
+    surface = dr.detach(out["alpha"]) >= 0.5
+    n = dr.maximum(mi.Float(dr.count(surface)), 1.0) * 3.0
+    l1 = lambda x: dr.sum(dr.select(surface, dr.sum(dr.abs(x - gt)), 0.0)) / n
+    e = dr.maximum(l1(C), 1e-6)
+    none = dr.count(surface) == 0
+    cI = mi.Color3f(out["interface"])
+    for k, name in ((1, "reflection"), (2, "transmission")):
+        if dr.width(w[k]) <= 1:  # not traced: a constant weight
+            continue
+        without = C - w[k] * (mi.Color3f(out[name]) - cI)
+        stats[f"gain_{name}"] = dr.select(none, dr.nan, (l1(without) - e) / e)
+    return stats
 
 
 def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False):
@@ -399,37 +445,18 @@ def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False)
             allowed)
 
 
-def component_gains(b, out: dict) -> dict:
-    """How much each secondary set improves the batch's photometric fit (numpy, no gradient): the relative
-    increase of the mean L1 error when its weight went to the interface instead (what dropping it would do, before
-    the interface adapts): gain_X = (E without X - E) / E, E = mean |C - photo| over the rays where the interface
-    is a surface (accumulated alpha >= 0.5). Only traced sets have a gain."""
-    rows = lambda x: (lambda a: a.T if a.ndim == 2 and a.shape[0] == 3 else a)(np.array(x))
-    surface = np.array(out["alpha"]) >= 0.5  # where the interface is a surface: right after an opacity reset the
-    if not surface.any():                    # 4 % Fresnel floor lets c_R brighten a dark, uncovered image
-        return {}
-    C, cI, gt = rows(out["rgb"])[surface], rows(out["interface"])[surface], b.rgb[surface]
-    e = max(float(np.abs(C - gt).mean()), 1e-6)
-    gains = {}
-    for k, (name, key) in enumerate((("reflection", "reflection"), ("transmission", "transmission")), start=1):
-        w = np.array(out["weights"][k])
-        if w.ndim == 0 or not np.any(w):
-            continue
-        without = C - w[surface][:, None] * (rows(out[key])[surface] - cI)
-        gains[f"gain_{name}"] = (float(np.abs(without - gt).mean()) - e) / e
-    return gains
-
-
 def depth_gap_stats(c, out: dict, extent: float) -> dict:
     """Where both sets are surfaces (accumulated alpha >= trans_min_alpha): the share of the batch's pixels whose
     transmission depth lies more than tau_delta behind the interface's (``gap_behind``, what L_trans's depth rule
-    calls glass) and in front of it (``gap_front``, impossible for glass: the depth gap's noise)."""
+    calls glass) and in front of it (``gap_front``, impossible for glass: the depth gap's noise). Width-1 Dr.Jit
+    arrays, reduced on the device."""
     _, Dd, _, DA = out["trans_direct"]
-    dI, dT = np.array(out["depth"]), np.array(Dd)
-    valid = (dI > 0) & (dT > 0) & (np.array(out["alpha"]) >= c.trans_min_alpha) & (np.array(DA) >= c.trans_min_alpha)
+    dI, dT = dr.detach(out["depth"]), dr.detach(Dd)
+    valid = ((dI > 0) & (dT > 0) & (dr.detach(out["alpha"]) >= c.trans_min_alpha)
+             & (dr.detach(DA) >= c.trans_min_alpha))
     tau = c.tau_delta * extent
-    dz = dT - dI
-    return {"gap_behind": float(np.mean(valid & (dz > tau))), "gap_front": float(np.mean(valid & (dz < -tau)))}
+    share = lambda m: mi.Float(dr.count(m)) / dr.width(m)
+    return {"gap_behind": share(valid & (dT - dI > tau)), "gap_front": share(valid & (dT - dI < -tau))}
 
 
 def see_through_gain(b, out: dict) -> np.ndarray:

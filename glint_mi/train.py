@@ -58,15 +58,24 @@ def eval_options(cfg, root) -> dict:
 BUDGET_WARN = 0.02  # share of the interface's rays that may spend the whole hit budget before the run warns
 
 
-def budget_full(out: dict, max_hits: int) -> float:
+def budget_full(out: dict, max_hits: int, read: bool = True):
     """Share of the batch's interface rays that composited ``max_hits`` hits (cut short with transmittance left:
     the model then learns the cut), read from the forward's stored hit list; NaN when nothing was recorded. Exact for
     the k-buffer traversal (its list count is its hit count); a lower bound for ``traversal: bvh``, whose budget also
-    counts a shell reported twice by the float32 test, which is listed once."""
+    counts a shell reported twice by the float32 test, which is listed once. Reduced on the device: ``read=False``
+    returns the width-1 Dr.Jit array, scheduled for the next evaluation."""
+    import drjit as dr
+    import mitsuba as mi
+
     lists = out.get("_lists")
     if not lists or lists[0] is None:
         return float("nan")
-    return float(np.mean(np.asarray(lists[0][1]) >= max_hits))
+    count = lists[0][1]
+    share = mi.Float(dr.count(count >= max_hits)) / dr.width(count)
+    if read:
+        return float(share[0])
+    dr.schedule(share)
+    return share
 
 
 class Trainer:
@@ -293,7 +302,9 @@ class Trainer:
         return np.array(out["depth"], np.float64), np.array(out["alpha"], np.float64)
 
     # --------------------------------------------------------- one step
-    def step(self) -> dict:
+    def step(self, read: bool = True) -> dict:
+        """One training step. Returns the loss terms and the batch's statistics: floats, or with ``read=False``
+        width-1 Dr.Jit arrays that nothing reads back until :meth:`settle` (the training loop: one read per log)."""
         import drjit as dr
         import mitsuba as mi
 
@@ -310,15 +321,29 @@ class Trainer:
             record = c.stored_hits and self.integ.lists_fit(dr.width(ray), c.stored_hits_mb)
             out = self.integ.trace(ray, active, need=need, forward=fwd, record=record)
             dr.eval(out["_passes"], out.get("_lists"))
-        full = budget_full(out, c.max_hits)
+        full = budget_full(out, c.max_hits, read=read)
         with phase("objective"):
-            terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent)
+            terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent,
+                                                       read=read)
         with phase("backward"):
             self.integ.backward(ray, active, out, adjoints, forward=fwd, t_raise=stats.pop("t_raise", None))
             dr.eval()  # run the replay now (the gradients are read next anyway): its time is the backward's
         with phase("update"):
             self._update(st)
         return {**terms, **stats, "budget_full": full}
+
+    def settle(self, rows: list[dict] | None = None) -> None:
+        """Read back the device values of ``rows`` (default: the history rows not read yet), in place, as floats:
+        the training loop keeps a step's terms and statistics on the device until a log line, a checkpoint, the
+        components decision or the end of the run needs them."""
+        import drjit as dr
+
+        if rows is None:
+            rows, self._unread = self.history[getattr(self, "_unread", 0):], len(self.history)
+        for row in rows:
+            dev = {k: v for k, v in row.items() if isinstance(v, dr.ArrayBase)}
+            if dev:
+                row.update(L.read_values(dev))
 
     def _update(self, st):
         import drjit as dr
@@ -420,7 +445,7 @@ class Trainer:
                 mid = True
                 t0 = time.perf_counter()
                 st = self.stage()
-                rec = self.step()
+                rec = self.step(read=False)
                 self._structure(st)
                 dt = time.perf_counter() - t0
                 rec.update(iteration=self.it, stage=st["name"], rays_per_s=rays / max(dt, 1e-9),
@@ -431,6 +456,7 @@ class Trainer:
                 self.elapsed = time.perf_counter() - start
                 bar.update(1)
                 if self.it % c.log_every == 0 or self.it == c.iterations:
+                    self.settle()
                     bar.set_postfix(epoch=f"{self.epoch:.1f}", loss=f"{rec['total']:.4f}",
                                     rays_s=f"{rec['rays_per_s']:.0f}",
                                     stage=st["name"], n=rec["gaussians"], refresh=False)
@@ -467,6 +493,7 @@ class Trainer:
 
     def _check_budget(self):
         """report.json ``hit_budget``: how often the last tenth of the run ran out of hits; a warning above 2 %."""
+        self.settle()
         tail = self.history[-max(1, len(self.history) // 10):]
         full = [r["budget_full"] for r in tail if np.isfinite(r.get("budget_full", np.nan))]
         if not full:
@@ -524,6 +551,7 @@ class Trainer:
         return {r: s for r, s in self.sets.items() if r not in self.dropped}
 
     def save_checkpoint(self) -> Path:
+        self.settle()
         arrays = {"iteration": np.array(self.it), "elapsed": np.array(self.elapsed), "extent": np.array(self.extent),
                   "bounds": np.stack(self.bounds), "rng": np.array(json.dumps(self.rng.bit_generator.state)),
                   "strategy_rng": np.array(json.dumps(self.strategy.rng.bit_generator.state)),
@@ -581,6 +609,7 @@ class Trainer:
         self.log(f"resumed {self.run_dir} at iteration {self.it}")
 
     def _write_log(self):
+        self.settle()
         rows = self.history
         if rows:
             keys = ["iteration", "stage", *LOSS_NAMES, "rays_per_s", "gaussians", "share_reflection",

@@ -23,6 +23,13 @@ def llvm_only(why: str):
     return pytest.mark.skipif(not LLVM, reason=f"{why}: needs an LLVM variant (running {mi.variant()})")
 
 
+try:  # pycolmap (SfM, undistortion): on PyPI for this machine and CI, absent on the GPU machine (no package index)
+    import pycolmap  # noqa: F401
+    PYCOLMAP = True
+except ImportError:
+    PYCOLMAP = False
+needs_pycolmap = pytest.mark.skipif(not PYCOLMAP, reason="needs pycolmap (SfM, undistortion), not installed here")
+
 # bit-for-bit runs: on one LLVM thread the gradient atomics sum in a fixed order; a GPU's atomics do not
 BITWISE = llvm_only("bit-for-bit equality of two runs on one Dr.Jit thread")
 

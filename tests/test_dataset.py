@@ -18,6 +18,8 @@ from glint_mi.dataset.generate import Preset, make_scene
 from glint_mi.exr import read_gt_exr
 from glint_mi.dataset.room import _overlap, build_room
 
+from conftest import needs_pycolmap
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -144,6 +146,7 @@ def test_colmap_binary_equals_text(scene_dir, tmp_path):
     np.testing.assert_allclose(b.points, [[1.0, 2.0, 3.0]])
 
 
+@needs_pycolmap
 def test_loader_errors_name_file_and_fix(scene_dir, tmp_path):
     bad = tmp_path / "bad"
     shutil.copytree(scene_dir, bad, ignore=shutil.ignore_patterns("meshes", "textures", "gt"))
@@ -246,6 +249,7 @@ def test_room_without_glass_is_the_same_room():
     np.testing.assert_array_equal(a.case_lo, b.case_lo)
 
 
+@needs_pycolmap
 def test_sfm_points_lie_on_surfaces(tmp_path):
     """Known-pose triangulation (pycolmap SIFT + matching) gives points on the scene's surfaces."""
     from glint_mi.dataset.cameras import trajectory

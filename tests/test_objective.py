@@ -282,7 +282,7 @@ def test_components_auto_decision_on_the_measured_pair(cover, share, kept):
     hist = [{"mask_t": cover, "share_transmission": share, "share_reflection": 0.05}] * 60
     logs = []
     fake = SimpleNamespace(cfg=c, it=at - 1, sets={"interface": 0, "transmission": 0, "reflection": 0}, dropped={},
-                           history=hist, report={"components": {}}, log=logs.append)
+                           history=hist, report={"components": {}}, log=logs.append, settle=lambda: None)
     components.decide(fake, {})
     assert fake.report["components"]["transmission"]["kept"] is kept, logs
     assert ("transmission" not in fake.dropped) is kept
@@ -316,3 +316,73 @@ def test_prior_layer_nearer_in_the_objective(tmp_path):
     paper, nearer = terms("interface", 1.0), terms("nearer", 1.0)
     assert nearer["depth"] < paper["depth"] and nearer["normal"] <= paper["normal"] + 1e-7
     assert nearer["l1"] == pytest.approx(paper["l1"], rel=1e-6)
+
+
+# float64 numpy definitions of the statistics the objective reduces on the device (losses.component_stats,
+# losses.depth_gap_stats): the references they are checked against
+def _rows(x):
+    a = np.array(x)
+    return a.T if a.ndim == 2 and a.shape[0] == 3 else a
+
+
+def _component_stats_reference(b, out) -> dict:
+    lum = lambda x: np.asarray(x).mean(0) if np.asarray(x).ndim == 2 else np.asarray(x)
+    w = out["weights"]
+    img_e = max(float(lum(np.array(out["rgb"])).mean()), 1e-6)
+    ref = {"share_reflection": float(np.mean(np.array(w[1]) * lum(np.array(out["reflection"])))) / img_e,
+           "share_transmission": float(np.mean(np.array(w[2]) * lum(np.array(out["transmission"])))) / img_e}
+    surface = np.array(out["alpha"]) >= 0.5
+    C, cI, gt = _rows(out["rgb"])[surface], _rows(out["interface"])[surface], b.rgb[surface]
+    e = max(float(np.abs(C - gt).mean()), 1e-6)
+    for k, name in ((1, "reflection"), (2, "transmission")):
+        wk = np.array(w[k])
+        if wk.ndim == 0 or wk.size == 1:
+            continue
+        without = C - wk[surface][:, None] * (_rows(out[name])[surface] - cI)
+        ref[f"gain_{name}"] = (float(np.abs(without - gt).mean()) - e) / e
+    return ref
+
+
+def _depth_gap_reference(c, out, extent) -> dict:
+    _, Dd, _, DA = out["trans_direct"]
+    dI, dT = np.array(out["depth"]), np.array(Dd)
+    valid = (dI > 0) & (dT > 0) & (np.array(out["alpha"]) >= c.trans_min_alpha) & (np.array(DA) >= c.trans_min_alpha)
+    dz, tau = dT - dI, c.tau_delta * extent
+    return {"gap_behind": float(np.mean(valid & (dz > tau))), "gap_front": float(np.mean(valid & (dz < -tau)))}
+
+
+def test_device_statistics_equal_numpy_and_are_read_only_when_asked(tmp_path):
+    """The objective's statistics (each set's share of the image energy and gain, the depth gaps, the hit budget)
+    are reduced on the device: equal to their float64 numpy definitions within float32 rounding (rel 1e-4), and with
+    read=False nothing is a float until read_values; a training run reads them back when it logs, as floats."""
+    from glint_mi.scene import read_scene
+    from glint_mi.train import Trainer, budget_full
+    from pathlib import Path
+
+    spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
+    c = TrainConfig.for_preset("tiny", iterations=40, log_every=8)
+    tr = Trainer(tmp_path / "run", c, scene=spec, log=lambda *a, **k: None)
+    tr.it = c.at(0.6)
+    st = tr.stage()
+    assert {"transmission", "reflection"} <= st["traced"] and st["trans"]
+    b, ray, fwd, out = _traced_batch(tr, st, need={"trans_direct"})
+    got = L.component_stats(out, mi.Color3f(*[mi.Float(b.rgb[:, k].astype(np.float32)) for k in range(3)]))
+    got.update(L.depth_gap_stats(c, out, tr.extent))
+    got = L.read_values(got)
+    ref = {**_component_stats_reference(b, out), **_depth_gap_reference(c, out, tr.extent)}
+    assert set(got) == set(ref) and ref["share_reflection"] > 0 and ref["gap_behind"] + ref["gap_front"] > 0
+    for k in ref:
+        assert got[k] == pytest.approx(ref[k], rel=1e-4, abs=1e-7), k
+    terms, _, stats = L.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent, read=False)
+    assert all(isinstance(terms[k], dr.ArrayBase) for k in ("total", "l1", "dssim", "trans"))
+    assert isinstance(stats["share_reflection"], dr.ArrayBase) and isinstance(stats["mask_t"], float)
+    read = L.read_values(terms)
+    assert read["total"] == pytest.approx(sum(v for k, v in read.items() if k != "total"), rel=1e-5)
+    rec = tr.integ.trace(ray, mi.Bool(True), forward=fwd, record=True)
+    assert isinstance(budget_full(rec, 4, read=False), dr.ArrayBase)
+    full = float(np.mean(np.asarray(rec["_lists"][0][1]) >= 4))
+    assert budget_full(rec, 4) == pytest.approx(full) and 0 < full
+    # a run: every logged row holds floats
+    tr.it = 0
+    tr.train(progress=False)
+    assert all(isinstance(v, (float, int, str)) for h in tr.history for v in h.values())

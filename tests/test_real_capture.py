@@ -12,6 +12,8 @@ import pytest
 
 from glint_mi.data import DatasetError, load_dataset
 
+from conftest import needs_pycolmap
+
 ROOT = Path(__file__).resolve().parent.parent
 FOX = Path(os.environ.get("GLINT_FOX", ROOT.parent / "shared" / "data" / "real_fox"))
 K1, K2, P1, P2 = 0.12, -0.05, 0.002, -0.001
@@ -68,6 +70,7 @@ def distorted_capture(folder: Path, n=3, ext=".png", frame_intrinsics=False):
     return pin, np.array([[fx, 0, cx], [0, fx, cy], [0, 0, 1.0]])
 
 
+@needs_pycolmap
 @pytest.mark.parametrize("frame_intrinsics", [False, True])
 def test_undistorted_views_see_the_pinhole_image(tmp_path, frame_intrinsics):
     """An OPENCV capture is undistorted once (pycolmap) into the cache: each undistorted pixel's ray, through the
@@ -115,6 +118,7 @@ def test_undistorted_views_see_the_pinhole_image(tmp_path, frame_intrinsics):
     assert any("undistorting 3 images" in m for m in logs)
 
 
+@needs_pycolmap
 def test_missing_and_broken_frames_are_named(tmp_path):
     """Missing images are listed all at once (skip drops them and says so); a truncated JPEG is named before any
     work; downscale reads images_<k> when the capture ships one."""
@@ -298,6 +302,7 @@ def test_evaluation_keeps_finished_views_on_ctrl_c(tmp_path, monkeypatch):
     assert not (tmp_path / "run" / "per_view" / "v1.json").exists()
 
 
+@needs_pycolmap
 @pytest.mark.skipif(not (FOX / "transforms.json").exists(), reason=f"the real fox capture is not at {FOX}")
 def test_fox_real_capture_tiny(tmp_path):
     """The instant-ngp fox (phone JPEGs, OPENCV distortion, 17 missing frames, no points, no priors, no glass) at

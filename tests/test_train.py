@@ -215,10 +215,10 @@ def _interrupt_at(trainer, monkeypatch, it):
 
     real = trainer.step
 
-    def step():
+    def step(**kw):
         if trainer.it == it:
             os.kill(os.getpid(), signal.SIGINT)
-        return real()
+        return real(**kw)
 
     monkeypatch.setattr(trainer, "step", step)
 
@@ -766,7 +766,7 @@ def test_hit_budget_share_is_measured_and_warned(rng):
 
     said = []
     fake = types.SimpleNamespace(history=[{"budget_full": 0.0}] * 90 + [{"budget_full": 0.05}] * 10, report={},
-                                 cfg=types.SimpleNamespace(max_hits=64), log=said.append)
+                                 cfg=types.SimpleNamespace(max_hits=64), log=said.append, settle=lambda: None)
     Trainer._check_budget(fake)
     assert fake.report["hit_budget"] == {"max_hits": 64, "budget_full_last_tenth": pytest.approx(0.05)}
     assert len(said) == 1 and "max_hits=128" in said[0]
