@@ -79,7 +79,9 @@ def steps(tr: Trainer, n: int, profiler: Profiler | None):
     for _ in range(n):
         t0 = time.perf_counter()
         st = tr.stage()
-        tr.step()
+        rec = tr.step(read=READ_EVERY_STEP[0])
+        if (tr.it + 1) % tr.cfg.log_every == 0:  # as Trainer.train: the deferred values are read at log lines
+            tr.settle([rec])
         tr._structure(st)
         dr.sync_thread()
         times.append(time.perf_counter() - t0)
@@ -104,6 +106,13 @@ def _kbuffer_k(tr, k):
     tr.integ.kbuffer_k = k
 
 
+READ_EVERY_STEP = [False]
+
+
+def _read_every_step(on):
+    READ_EVERY_STEP[0] = on
+
+
 def _reuse_lists(on):
     import glint_mi_plugins.glint_march as gm
     gm.REUSE_LISTS = on
@@ -120,7 +129,9 @@ SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambd
             ("k-buffer list arrays kept between queries (new arrays per query before)", lambda tr: _reuse_lists(False),
              lambda tr: _reuse_lists(True)),
             ("Adam's gathered rows in glint_mi.native (numpy before)", lambda tr: setattr(_Adam, "NATIVE", False),
-             lambda tr: setattr(_Adam, "NATIVE", True))]
+             lambda tr: setattr(_Adam, "NATIVE", True)),
+            ("loss terms and batch statistics read back at log lines (every step before)",
+             lambda tr: _read_every_step(True), lambda tr: _read_every_step(False))]
 _ADAM_STEP = _Adam.step
 
 
