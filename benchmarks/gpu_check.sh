@@ -19,7 +19,7 @@ echo "pytest core rc=$?" >> "$out/summary.txt"
 timeout 200 python3 -m glint_mi.demo --out /tmp/gpu_demo > "$out/demo.txt" 2>&1
 echo "demo rc=$?" >> "$out/summary.txt"
 cp /tmp/gpu_demo/run/metrics.json "$out/demo_metrics.json" 2>/dev/null
-grep -c "shader binding table" "$out/demo.txt" >> "$out/summary.txt"
+echo "demo shader-binding-table warnings: $(grep -c 'shader binding table' "$out/demo.txt")" >> "$out/summary.txt"
 timeout 120 python3 benchmarks/profile_step.py --steps 10 --name gpu_demo > "$out/profile.txt" 2>&1
 echo "profile rc=$?" >> "$out/summary.txt"
 cat "$out/summary.txt"

@@ -340,7 +340,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
-    from .evaluate import machine
+    from .machine import summary
 
     jobs = job_list(methods, scenes, seeds, args.out)
     try:
@@ -350,7 +350,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     rows = [{"method": m, "scene": scene.name, "seed": seed, **res["metrics"],
-             "variant": res.get("variant", "unrecorded"), "device": res.get("device", "unrecorded")}
+             "variant": res["variant"], "device": res["device"]}
             for (m, scene, _, seed), res in zip(jobs, results)]
     for scene in scenes:
         runs = {}
@@ -361,7 +361,7 @@ def main(argv=None) -> int:
         figure(scene.name, runs, args.out / "figures" / f"{scene.name}.png")
     derived = any((s / "priors" / "PRIORS.json").exists() for s in scenes)
     header = (f"Benchmark: `python -m glint_mi.benchmark {' '.join(argv if argv is not None else sys.argv[1:])}`\n\n"
-              f"preset {args.preset}, variant {args.variant}; machine: {machine()}."
+              f"preset {args.preset}, variant {args.variant}; machine: {summary()}."
               + (" Priors derived from ground truth (labelled)." if derived else "") + "\n")
     print(write_results(rows, args.out, header))
     curves = {}

@@ -111,13 +111,6 @@ def save_renders(folder: Path, name: str, b: dict) -> None:
     tmp.replace(folder / f"{name}.exr")
 
 
-def machine() -> str:
-    """The machine line of ``metrics.json`` (:func:`glint_mi.machine.summary`)."""
-    from .machine import summary
-
-    return summary()
-
-
 def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: float | None = None,
              write: bool = True, progress: bool = False, depth_rule: str = "expected", glass_of=None) -> dict:
     """Metrics of ``integ`` (a glint integrator holding trained sets) on ``views``, at the views' resolution; the
@@ -132,10 +125,10 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
 
     out_dir = Path(out_dir) if (write and out_dir is not None) else None
     per_view, renders, seconds = {}, {}, []
-    from .machine import describe
+    from .machine import describe, summary
 
     dev = describe()
-    res = {"resolution": [views[0].width, views[0].height], "machine": machine(), "variant": dev["variant"],
+    res = {"resolution": [views[0].width, views[0].height], "machine": summary(dev), "variant": dev["variant"],
            "device": dev["device"], "train_s": train_s}
 
     def result(done_all: bool) -> dict:

@@ -61,9 +61,10 @@ def describe() -> dict:
             "system": platform.system()}
 
 
-def summary() -> str:
-    """One line: 'NVIDIA H200 (cuda_ad_rgb), host: <cpu>, 16 cores, Linux' or '<cpu>, 2 cores, Linux, llvm_ad_rgb'."""
-    d = describe()
+def summary(d: dict | None = None) -> str:
+    """One line of :func:`describe` (``d``, default now): 'NVIDIA H200 (cuda_ad_rgb), host: <cpu>, 16 cores, Linux' or
+    '<cpu>, 2 cores, Linux, Dr.Jit llvm_ad_rgb'."""
+    d = describe() if d is None else d
     if d["backend"] == "cuda":
         return f"{d['device']} ({d['variant']}), host: {d['cpu']}, {d['cores']} cores, {d['system']}"
     return f"{d['cpu']}, {d['cores']} cores, {d['system']}, Dr.Jit {d['variant']}"

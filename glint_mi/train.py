@@ -90,6 +90,7 @@ class Trainer:
         self.it = 0
         self.elapsed = 0.0
         self.history: list[dict] = []
+        self._unread = 0  # history rows from here on may hold device values (settle)
         self.report: dict = {"components": {}, "init": {}, "events": []}
         self.rng = np.random.default_rng(cfg.seed)
         self.stop_requested = False
@@ -339,7 +340,7 @@ class Trainer:
         import drjit as dr
 
         if rows is None:
-            rows, self._unread = self.history[getattr(self, "_unread", 0):], len(self.history)
+            rows, self._unread = self.history[self._unread:], len(self.history)
         for row in rows:
             dev = {k: v for k, v in row.items() if isinstance(v, dr.ArrayBase)}
             if dev:

@@ -211,8 +211,7 @@ class GlintIntegrator(GaussianPasses):
             raise ValueError(f"glint: 'kbuffer_k' must be >= 1 (got {self.kbuffer_k}).")
         self.kbuffer = False
         if traversal != "bvh":
-            why = native.why_not() or ("" if mi.variant().startswith("llvm") else
-                                       f"variant {mi.variant()} (its arrays are not in host memory)")
+            why = native.why_not_here()
             if why and traversal == "kbuffer":
                 raise ValueError(f"glint: traversal=kbuffer is unavailable: {why}. Use traversal=bvh, or build it "
                                  f"with `python -m glint_mi.native`.")

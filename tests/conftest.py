@@ -9,13 +9,13 @@ glint_mi.set_variant()
 import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
+from glint_mi import native  # noqa: E402
 from glint_mi.gaussians import GaussianSet  # noqa: E402
 from glint_mi_plugins.glint_gaussians import make_shape  # noqa: E402
 
 
 LLVM = mi.variant().startswith("llvm")
-# the integrator's traversal "auto" picks the native k-buffer where the library is built and the variant is LLVM
-KBUFFER = LLVM and __import__("glint_mi.native", fromlist=["load"]).load() is not None
+KBUFFER = not native.why_not_here()  # the integrator's traversal "auto" takes the native k-buffer
 
 
 def llvm_only(why: str):

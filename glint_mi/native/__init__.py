@@ -123,6 +123,15 @@ def why_not() -> str:
     return _why
 
 
+def why_not_here() -> str:
+    """Why the integrator cannot use the k-buffer traversal in this process ('' if it can): the library is not
+    built, or the Mitsuba variant's arrays are not in host memory (only LLVM variants' are)."""
+    import mitsuba as mi
+
+    return why_not() or ("" if (mi.variant() or "").startswith("llvm") else
+                         f"variant {mi.variant()} (its arrays are not in host memory)")
+
+
 class ShellSet:
     """One Gaussian set's shells in an Embree scene of the native library (``data`` [N, 10] as the ellipsoids shape
     holds it: centre, shell scales / extent, x y z w quaternion).
