@@ -118,6 +118,19 @@ def _reuse_lists(on):
     gm.REUSE_LISTS = on
 
 
+def _device_update(tr, on):
+    """update: device (on) or host (off), switched in place: the host's sets are brought up to date first."""
+    from glint_mi.device_step import DeviceUpdate
+
+    if on and tr.dev is None:
+        tr.dev = DeviceUpdate(tr.adam, tr.cfg.kernel, tr.extent)
+        for role, gs in tr.sets.items():
+            tr.dev.load(role, gs, tr.strategy)
+    elif not on and tr.dev is not None:
+        tr.sync()
+        tr.dev = None
+
+
 from glint_mi.strategy import Adam as _Adam  # noqa: E402
 
 SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda tr: _rebuild_every(0),
@@ -131,7 +144,9 @@ SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambd
             ("Adam's gathered rows in glint_mi.native (numpy before)", lambda tr: setattr(_Adam, "NATIVE", False),
              lambda tr: setattr(_Adam, "NATIVE", True)),
             ("loss terms and batch statistics read back at log lines (every step before)",
-             lambda tr: _read_every_step(True), lambda tr: _read_every_step(False))]
+             lambda tr: _read_every_step(True), lambda tr: _read_every_step(False)),
+            ("update on the device: chain rule, Adam, packing on Dr.Jit arrays (update: host before)",
+             lambda tr: _device_update(tr, False), lambda tr: _device_update(tr, True))]
 _ADAM_STEP = _Adam.step
 
 

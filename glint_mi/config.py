@@ -83,6 +83,9 @@ class TrainConfig:
     lr_transparency: float = 0.05
     adam_eps: float = 1e-15
     adam: str = "selective"              # selective (touched rows only, per-row bias correction) | dense
+    update: str = "device"               # device: chain rule, Adam and packing on Dr.Jit arrays (float32; nothing goes
+    #                                      to the host between structure changes) | host: numpy / native C++ (float64
+    #                                      chain rule and moment updates; the reference the device one is tested on)
     traversal: str = "auto"              # kbuffer (native, one Embree traversal per 64 hits) | bvh (Mitsuba's
     #                                      queries, one per hit) | auto: kbuffer where glint_mi.native builds
     stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
@@ -270,6 +273,7 @@ class TrainConfig:
         need(self.priors in ("all", "none"), "priors", "use all or none")
         need(self.traversal in ("auto", "kbuffer", "bvh"), "traversal", "use auto, kbuffer or bvh")
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
+        need(self.update in ("device", "host"), "update", "use device or host")
         need(self.trans_masks in ("depth_gap", "prior", "gt"), "trans_masks", "use depth_gap, prior or gt")
         need(self.depth_align in ("batch", "sfm", "image"), "depth_align", "use sfm, image or batch")
         need(self.normal_loss in ("cos", "l1_cos"), "normal_loss", "use cos (the paper) or l1_cos")

@@ -229,6 +229,14 @@ class Trainer:
         self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, self.cfg.opacity_shells, **props))
         self.integ = self.scene.integrator()
         self.params = mi.traverse(self.integ)
+        self.dev = None
+        self._host_stale = False  # the device holds newer values than self.sets (update: device)
+        if self.cfg.update == "device":
+            from .device_step import DeviceUpdate
+
+            self.dev = DeviceUpdate(self.adam, self.cfg.kernel, self.extent)
+            for role, gs in self.sets.items():
+                self.dev.load(role, gs, self.strategy)
         self._push()
         if self.integ.env is not None:
             self._push_env()
@@ -239,15 +247,42 @@ class Trainer:
         import drjit as dr
         from glint_mi_plugins.glint_gaussians import pack
 
+        from glint_mi_plugins.glint_gaussians import info
+
         for role, gs in self.sets.items():
             if roles is not None and role not in roles:
                 continue
-            arrays = pack(self.integ.sets[role].shape, gs)
+            shape = self.integ.sets[role].shape
+            if self.dev is not None:  # packed on the device from its values (update: device)
+                meta = info(shape)
+                arrays = self.dev.pack(role, meta.min_shell_ratio, meta.opacity_shells, meta.extent)
+                dr.eval(*arrays.values())
+                # Mitsuba builds a set's BVH from the host memory of `data` without waiting for the LLVM kernels
+                # that write it (measured: wrong hits, a different loss every run with traversal bvh)
+                dr.sync_thread()
+            else:
+                arrays = {k: floats(v.ravel()) for k, v in pack(shape, gs).items()}
             for k in PARAM_KEYS:
                 key = f"{role}.{k}"
-                self.params[key] = floats(arrays[k].ravel())
+                self.params[key] = arrays[k]
                 dr.enable_grad(self.params[key])
         self.params.update()
+
+    def sync(self) -> None:
+        """Bring the host's sets, Adam moments and densification statistics up to date with the device's (update:
+        device; a no-op when nothing changed since): before anything on the host reads or changes them."""
+        if self.dev is None or not self._host_stale:
+            return
+        for role, gs in self.sets.items():
+            if role in self.dev.sets:
+                self.dev.pull(role, gs, self.strategy)
+        self._host_stale = False
+
+    def _reload(self, roles) -> None:
+        """Send the sets ``roles`` (changed on the host: densified, reset) back to the device."""
+        if self.dev is not None:
+            for role in roles:
+                self.dev.load(role, self.sets[role], self.strategy)
 
     # ---------------------------------------------------------- schedule
     def stage(self, it: int | None = None) -> dict:
@@ -341,10 +376,28 @@ class Trainer:
 
         if rows is None:
             rows, self._unread = self.history[self._unread:], len(self.history)
+            if self.dev is not None:
+                self._count_nonfinite()
         for row in rows:
             dev = {k: v for k, v in row.items() if isinstance(v, dr.ArrayBase)}
             if dev:
                 row.update(L.read_values(dev))
+
+    def _count_nonfinite(self):
+        """update: device counts the non-finite gradient entries it zeroes on the device; read them here (the host
+        update counts them as they happen)."""
+        seen = self.__dict__.setdefault("_nonfinite_read", {})
+        for role, total in self.dev.read_bad().items():
+            delta = total - seen.get(role, 0)
+            if delta <= 0:
+                continue
+            seen[role] = total
+            counts = self.report.setdefault("nonfinite_gradients", {})
+            first = not counts.get(role)
+            counts[role] = counts.get(role, 0) + delta
+            if first:
+                self.log(f"by iteration {self.it}: {delta} non-finite gradient entries in the {role} set, zeroed "
+                         f"(counted in report.json 'nonfinite_gradients')")
 
     def _update(self, st):
         import drjit as dr
@@ -354,6 +407,8 @@ class Trainer:
         lr_pos = np.exp((1 - frac) * np.log(c.lr_position) + frac * np.log(c.lr_position_final)) / c.lr_position
         if self.env is not None:
             self._env_step()
+        if self.dev is not None:
+            return self._update_device(st, lr_pos)
         for role in list(self.sets):
             gs = self.sets[role]
             grads = {k: np.array(dr.grad(self.params[f"{role}.{k}"]), np.float64) for k in PARAM_KEYS}
@@ -383,6 +438,40 @@ class Trainer:
             touched = (g["logit_opacity"] != 0) | np.any(g["means"] != 0, axis=1) | np.any(g["sh"][:, 0] != 0, axis=1)
             self.adam.step(role, gs, g, {"means": lr_pos}, rows=touched)
 
+    def _update_device(self, st, lr_pos: float):
+        """:meth:`_update` on the device (update: device): the same chain rule, zeroed fields, statistics and
+        selective Adam on Dr.Jit arrays; the host's sets go stale until :meth:`sync`."""
+        import drjit as dr
+        import mitsuba as mi
+
+        c = self.cfg
+        lr = {"means": dr.opaque(mi.Float64, lr_pos)}
+        degree = dr.opaque(mi.UInt32, st["sh_degree"])
+        for role in list(self.sets):
+            keys = [f"{role}.{k}" for k in PARAM_KEYS]
+            grads = {k: dr.grad(self.params[key]) for k, key in zip(PARAM_KEYS, keys)}
+            dr.eval(*grads.values())
+            for key in keys:
+                dr.clear_grad(self.params[key])
+            if role not in st["trained"] or role not in st["traced"]:
+                continue
+            zero = set()
+            if role != "interface":
+                zero.add("logit_transparency")
+                if not (role == "transmission" and c.max_order == 2):
+                    zero.add("logit_specular")
+            elif "transmission" not in self.sets:
+                zero.add("logit_transparency")
+            g = self.dev.gradients(role, grads, degree, zero)
+            dr.eval(*g.values())
+            seen, touched, means = self.dev.rows(role, g)
+            if self._densifying():
+                self.dev.accumulate(role, seen, means)
+            dr.eval(touched)
+            self.dev.step(role, g, touched, lr)
+            self.dev.schedule(role)
+            self._host_stale = True
+
     def _densifying(self, it=None):
         c, it = self.cfg, self.it if it is None else it
         return c.at(c.densify_from) <= it < c.at(c.densify_until)
@@ -400,16 +489,21 @@ class Trainer:
         if c.depth_align == "image" and "depth" in self.bank.has and it % c.every(c.depth_refit) == 0:
             self.bank.fit_depth_to_renders(self.render_depth)
         reset = c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0
-        if self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from):
-            for role in sorted(st["trained"] & set(self.sets)):
+        densify = self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from)
+        changed = sorted(st["trained"] & set(self.sets)) if densify or reset else []
+        if changed:
+            self.sync()
+        if densify:
+            for role in changed:
                 others = sum(len(g) for r, g in self.active_sets().items() if r != role)
                 self.sets[role] = self.strategy.densify_and_prune(it, role, self.sets[role], self.adam,
                                                                   prune_large=self.strategy.resets > 0,
                                                                   others=others)
         if reset:
-            for role in sorted(st["trained"] & set(self.sets)):
+            for role in changed:
                 fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
                 self.strategy.reset(it, role, self.sets[role], self.adam, fields)
+        self._reload(changed)
         components.decide(self, st)
 
     # ------------------------------------------------------------- loop
@@ -549,10 +643,12 @@ class Trainer:
 
     # ------------------------------------------------------ persistence
     def active_sets(self) -> dict[str, GaussianSet]:
+        self.sync()
         return {r: s for r, s in self.sets.items() if r not in self.dropped}
 
     def save_checkpoint(self) -> Path:
         self.settle()
+        self.sync()
         arrays = {"iteration": np.array(self.it), "elapsed": np.array(self.elapsed), "extent": np.array(self.extent),
                   "bounds": np.stack(self.bounds), "rng": np.array(json.dumps(self.rng.bit_generator.state)),
                   "strategy_rng": np.array(json.dumps(self.strategy.rng.bit_generator.state)),
