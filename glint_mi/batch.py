@@ -276,7 +276,9 @@ class RayBank:
     def has(self) -> set[str]:
         return {k for k, v in self.priors.items() if v is not None}
 
-    def sample(self, rng: np.random.Generator, patches: int, p: int) -> Batch:
+    def _draw(self, rng: np.random.Generator, patches: int, p: int):
+        """The random part of a batch: each patch's view and top-left pixel (numpy, one Generator stream: a run is
+        reproducible and resumes exactly)."""
         vidx = rng.integers(0, len(self.views), patches)
         hs = np.array([self.sizes[i][0] for i in vidx])
         ws = np.array([self.sizes[i][1] for i in vidx])
@@ -284,6 +286,53 @@ class RayBank:
             raise ValueError(f"patch size {p} is larger than an image ({hs.min()}x{ws.min()}); lower 'patch'.")
         y0 = (rng.random(patches) * (hs - p + 1)).astype(np.int64)
         x0 = (rng.random(patches) * (ws - p + 1)).astype(np.int64)
+        return vidx, ws, y0, x0
+
+    def sample_device(self, rng: np.random.Generator, patches: int, p: int) -> "DeviceBatch":
+        """:meth:`sample` on the device: the same draws from ``rng`` (3 numbers a patch go to the device), the
+        pixel indices computed and the bank's arrays gathered there (:meth:`device_arrays`); equal to
+        ``to_device(sample(...))`` (tested)."""
+        import drjit as dr
+        import mitsuba as mi
+
+        from .render import aligned
+
+        vidx, _, y0, x0 = self._draw(rng, patches, p)
+        a = self.device_arrays()
+        i = dr.arange(mi.UInt32, patches * p * p)
+        j, local = i // (p * p), i % (p * p)
+        up = lambda x: mi.UInt32(aligned(x, np.uint32))
+        view = dr.gather(mi.UInt32, up(vidx), j)
+        y = dr.gather(mi.UInt32, up(y0), j) + local // p
+        x = dr.gather(mi.UInt32, up(x0), j) + local % p
+        flat = dr.gather(mi.UInt32, a["offsets"], view) + y * dr.gather(mi.UInt32, a["widths"], view) + x
+        return _gather_batch(a, view, flat, patches, p, self.depth_inverse)
+
+    def device_arrays(self) -> dict:
+        """The bank's photos, rays and priors as flat Dr.Jit arrays (made once, again when the depth alignment, the
+        see-through cue or the SfM depth are replaced)."""
+        key = (self.depth_affine, self.cue, self.sfm_depth)
+        cached = getattr(self, "_device", None)
+        if cached is not None and all(x is y for x, y in zip(cached[0], key)):
+            return cached[1]
+        import mitsuba as mi
+
+        from .render import aligned
+
+        f = lambda x: None if x is None else mi.Float(aligned(np.asarray(x, np.float32).ravel()))
+        arrays = {"offsets": mi.UInt32(aligned(self.offsets[:-1], np.uint32)),
+                  "widths": mi.UInt32(aligned([w for _, w in self.sizes], np.uint32)),
+                  "rgb": f(self.rgb), "dirs": f(self.dirs), "origins": f(self.origins),
+                  "axes": f(np.transpose(self.axes, (0, 2, 1))),  # per view: the x, y, z axes one after the other
+                  "depth": None if self.priors.get("depth") is None else f(self.priors["depth"][:, 0]),
+                  "normal": f(self.priors.get("normal")), "albedo": f(self.priors.get("albedo")),
+                  "glass": f(self.glass), "affine": f(self.depth_affine), "cue": f(self.cue),
+                  "sfm_depth": f(self.sfm_depth)}
+        self._device = (key, arrays)
+        return arrays
+
+    def sample(self, rng: np.random.Generator, patches: int, p: int) -> Batch:
+        vidx, ws, y0, x0 = self._draw(rng, patches, p)
         dy, dx = np.mgrid[0:p, 0:p]
         ys = (y0[:, None] + dy.ravel()[None]).ravel()
         xs = (x0[:, None] + dx.ravel()[None]).ravel()
@@ -304,3 +353,57 @@ def patch_neighbours(patches: int, p: int):
     local = (dy * p + dx).ravel()
     base = (np.arange(patches)[:, None] * p * p + local[None]).ravel()
     return base, base + 1, base + p
+
+
+@dataclasses.dataclass
+class DeviceBatch:
+    """A :class:`Batch` as Dr.Jit values of the variant in force (what the objective reads): per ray its view index,
+    the ray, its view's OpenCV camera axes (``axes[2]`` the forward axis), the photo and the priors; ``depth_affine``
+    = (w, q) per ray (NaN where the view has no fit)."""
+    view: object
+    origin: object
+    direction: object
+    axes: tuple
+    rgb: object
+    depth_prior: object | None
+    normal_prior: object | None
+    albedo_prior: object | None
+    glass: object | None
+    depth_affine: tuple | None
+    cue: object | None
+    sfm_depth: object | None
+    patches: int
+    patch: int
+    depth_inverse: bool = False
+
+
+def _gather_batch(a: dict, view, flat, patches: int, p: int, depth_inverse: bool) -> DeviceBatch:
+    """The rays ``flat`` (with their views ``view``) of a bank's device arrays ``a``."""
+    import drjit as dr
+    import mitsuba as mi
+
+    g1 = lambda key, idx: None if a[key] is None else dr.gather(mi.Float, a[key], idx)
+    g3 = lambda cls, key, idx: None if a[key] is None else dr.gather(cls, a[key], idx)
+    affine = None if a["affine"] is None else (g1("affine", view * 2), g1("affine", view * 2 + 1))
+    return DeviceBatch(view, g3(mi.Point3f, "origins", view), g3(mi.Vector3f, "dirs", flat),
+                       tuple(g3(mi.Vector3f, "axes", view * 3 + k) for k in range(3)), g3(mi.Color3f, "rgb", flat),
+                       g1("depth", flat), g3(mi.Vector3f, "normal", flat), g3(mi.Color3f, "albedo", flat),
+                       g1("glass", flat), affine, g1("cue", flat), g1("sfm_depth", flat), patches, p, depth_inverse)
+
+
+def to_device(b: Batch) -> DeviceBatch:
+    """A host :class:`Batch` sent to the device as it is (tests and benchmarks that draw with :meth:`RayBank.sample`)."""
+    import mitsuba as mi
+
+    from .render import floats
+
+    vec = lambda cls, x: None if x is None else cls(*floats(x))
+    one = lambda x: None if x is None else floats(x)
+    affine = None if b.depth_affine is None else (floats(b.depth_affine[:, 0]), floats(b.depth_affine[:, 1]))
+    from .render import aligned
+
+    return DeviceBatch(mi.UInt32(aligned(b.view, np.uint32)), vec(mi.Point3f, b.origin),
+                       vec(mi.Vector3f, b.direction), tuple(vec(mi.Vector3f, b.axes[:, :, k]) for k in range(3)),
+                       vec(mi.Color3f, b.rgb), one(b.depth_prior), vec(mi.Vector3f, b.normal_prior),
+                       vec(mi.Color3f, b.albedo_prior), one(b.glass), affine, one(b.cue), one(b.sfm_depth),
+                       b.patches, b.patch, b.depth_inverse)

@@ -2,7 +2,9 @@
 sections 3 and 4).
 
 Differentiable terms take Dr.Jit arrays over a batch of rays, with ``view`` [M] the image each ray belongs to (the
-scale-shift fit of the depth loss is per image). Masks are computed without gradient, on whole images (numpy).
+scale-shift fit of the depth loss is per image). L_trans's masks are computed without gradient on the batch's
+patches, on the device (:func:`batch_transparency_masks`); :func:`transparency_masks` is their definition on a whole
+image (numpy), which the device version is tested against.
 """
 from __future__ import annotations
 
@@ -251,12 +253,14 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
     The terms and the statistics are reduced on the device. ``read`` (default) returns them as floats; with
     ``read=False`` they stay width-1 Dr.Jit arrays, scheduled for the next evaluation (the backward's), so a training
     step reads nothing back until it is logged (:func:`read_values`)."""
-    from .batch import patch_neighbours
-    from .render import aligned, floats
+    from .batch import DeviceBatch, patch_neighbours, to_device
+    from .render import floats
 
+    if not isinstance(b, DeviceBatch):
+        b = to_device(b)
     p = b.patch
     nb = patch_neighbours(b.patches, p)
-    gt = mi.Color3f(*floats(b.rgb))
+    gt = b.rgb
     terms = {k: 0.0 for k in LOSS_NAMES}
     stats = {}
     with dr.resume_grad():
@@ -287,7 +291,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         # the prior terms' schedule (prior_decay): an opaque scalar, so the kernels stay the same while it falls
         prior_w = dr.opaque(mi.Float, st.get("prior_scale", 1.0)) if c.prior_decay < 1.0 else 1.0
         if st["depth"]:
-            prior = floats(b.depth_prior)
+            prior = b.depth_prior
             mask = (prior > 0) & (A > 0.5)
             d_behind = Dd if behind_ok is not None else None
             if b.depth_inverse:  # a disparity prior (MiDaS, Depth Anything): the fit is affine in 1 / depth
@@ -297,26 +301,23 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                     d_behind = 1.0 / dr.maximum(d_behind, 1e-6)
             behind = (d_behind, behind_ok) if d_behind is not None else None
             if c.depth_align in ("sfm", "image") and b.depth_affine is not None:
-                fit = np.isfinite(b.depth_affine[:, 0])  # views without a fit keep the per-batch fit
-                w_fix, q_fix = floats(np.where(fit, b.depth_affine[:, 0], 1.0)), floats(
-                    np.where(fit, b.depth_affine[:, 1], 0.0))
-                vid = mi.UInt32(aligned(np.where(fit, n_views, b.view), np.uint32))  # fitted views: a spare slot
-                w_b, q_b = depth_fit(depth, prior, mask & mi.Bool(aligned(~fit, bool)), vid, n_views + 1)
-                sel = mi.Bool(aligned(fit, bool))
+                w_v, q_v = b.depth_affine
+                fit = dr.isfinite(w_v)  # views without a fit keep the per-batch fit
+                vid = dr.select(fit, n_views, b.view)  # fitted views: a spare slot
+                w_b, q_b = depth_fit(depth, prior, mask & ~fit, vid, n_views + 1)
                 parts["depth"] = c.w_depth * prior_w * depth_loss_aligned(
-                    depth, prior, mask, dr.select(sel, w_fix, w_b), dr.select(sel, q_fix, q_b), behind)
+                    depth, prior, mask, dr.select(fit, w_v, w_b), dr.select(fit, q_v, q_b), behind)
             else:
-                vid = mi.UInt32(aligned(b.view, np.uint32))
-                parts["depth"] = c.w_depth * prior_w * depth_loss(depth, prior, mask, vid, n_views, behind)
+                parts["depth"] = c.w_depth * prior_w * depth_loss(depth, prior, mask, b.view, n_views, behind)
         if st["sfm_depth"] and b.sfm_depth is not None:
-            z = floats(b.sfm_depth)
+            z = b.sfm_depth
             m = (z > 0) & (A > 0.5)
             r = dr.select(m, dr.abs(out_depth - z) / dr.maximum(z, 1e-6), 0.0)
             parts["sfm_depth"] = c.w_sfm_depth * dr.sum(r) / dr.maximum(dr.count(m), 1)
         if st["normal"]:
-            axes = [mi.Vector3f(*floats(b.axes[:, :, k])) for k in range(3)]
+            axes = b.axes
             n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
-            prior = mi.Vector3f(*floats(b.normal_prior))
+            prior = b.normal_prior
             valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
             behind = None
             if behind_ok is not None:
@@ -335,24 +336,20 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                 w_t, w_o, stats["mask_t"], allowed = batch_transparency_masks(c, b, out, extent, st["t_gate"])
                 stats.update(depth_gap_stats(c, out, extent))
                 if st["trans"] and c.trans_masks == "depth_gap":
-                    parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
+                    parts["trans"] = c.w_trans * (bce(t, 0.98, w_t) + bce(t, 0.02, w_o))
                 if st["t_gate"]:  # t_raise: masks - nothing may raise t where the gate's opaque votes fall (replay)
-                    stats["t_raise"] = mi.Bool(aligned(allowed, bool))
+                    stats["t_raise"] = allowed
             if st["plausibility"]:
-                w_p = floats(w_o) if need_masks else plausibility_weight(t, A, c.trans_min_alpha)
+                w_p = w_o if need_masks else plausibility_weight(t, A, c.trans_min_alpha)
                 parts["plausibility"] = c.w_plausibility * plausibility(
                     Dd, out["depth"], Dn, out["normal"], w_p, extent)
             if st["treg"]:
-                img = b.rgb.reshape(b.patches, p, p, 3)
-                edge = (np.abs(img[:, :-1, 1:] - img[:, :-1, :-1]).mean(-1)
-                        + np.abs(img[:, 1:, :-1] - img[:, :-1, :-1]).mean(-1))  # at the nb pixels, in order
-                grad_i = edge.reshape(-1) * 10.0
-                parts["treg"] = c.w_treg * transparency_regulariser(t, floats(grad_i), nb)
+                parts["treg"] = c.w_treg * transparency_regulariser(t, photo_edges(gt, nb) * 10.0, nb)
         if st["trans"] and c.trans_masks in ("gt", "prior"):  # TSGS: supervised by given glass masks
-            g = b.glass.reshape(b.patches, p, p) > 0.5
-            w_t, w_o = (erode(m).ravel().astype(np.float32) for m in (g, ~g))
-            stats["mask_t"] = float(np.mean(w_t > 0))
-            parts["trans"] = c.w_trans * (bce(t, 0.98, floats(w_t)) + bce(t, 0.02, floats(w_o)))
+            g = b.glass > 0.5
+            w_t, w_o = (dr.select(erode_patches(m, p), 1.0, 0.0) for m in (g, ~g))
+            stats["mask_t"] = mi.Float(dr.count(w_t > 0)) / dr.width(w_t)
+            parts["trans"] = c.w_trans * (bce(t, 0.98, w_t) + bce(t, 0.02, w_o))
         total = sum(parts.values())
         dr.backward(total)
         adjoints = {}
@@ -413,36 +410,93 @@ def component_stats(out: dict, gt) -> dict:
     return stats
 
 
+def _mean3(c):
+    """The mean of a colour's channels, summed in numpy's order (float32)."""
+    return ((c.x + c.y) + c.z) / 3.0
+
+
+def erode_patches(mask, p: int):
+    """3x3 erosion of a Dr.Jit Bool on p x p patches laid out one after the other (row-major): a pixel stays set where
+    it and its 8 neighbours are, and nowhere on a patch's border (scipy's binary_erosion with border 0, per patch)."""
+    i = dr.arange(mi.UInt32, dr.width(mask))
+    local = i % (p * p)
+    y, x = local // p, local % p
+    inner = (y > 0) & (y < p - 1) & (x > 0) & (x < p - 1)
+    out = mask & inner
+    base = mi.Int32(i)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dy or dx:
+                out &= dr.gather(mi.Bool, mask, mi.UInt32(dr.select(inner, base + dy * p + dx, base)))
+    return out
+
+
+def photo_edges(gt, nb):
+    """The photo's edge strength at the patch pixels ``nb`` (patch_neighbours' pixels with a right and a lower
+    neighbour): mean over channels of |right - pixel| plus that of |below - pixel|."""
+    from .render import aligned
+
+    i, right, down = (mi.UInt32(aligned(x, np.uint32)) for x in nb)
+    at = lambda idx: dr.gather(mi.Color3f, gt, idx)
+    c = at(i)
+    return _mean3(dr.abs(at(right) - c)) + _mean3(dr.abs(at(down) - c))
+
+
+def patch_transparency_masks(depth_t, depth_i, p: int, tau_delta: float, albedo=None, base=None, cos_view=None,
+                             low_a: float = 0.05, high_a: float = 0.10, high_b: float = 0.25, alpha_t=None,
+                             alpha_i=None, min_alpha: float = 0.5, cue=None, dark_votes: bool = True):
+    """:func:`transparency_masks` on the device, for p x p patches laid out one after the other: the same rules on
+    Dr.Jit arrays (per ray), returns (weight_transparent, weight_opaque) as Float. Equal to the numpy definition on
+    the same values: the masks exactly, the view-angle weights to float32 rounding (tests/test_losses.py)."""
+    valid = (depth_t > 0) & (depth_i > 0)
+    if alpha_t is not None and alpha_i is not None:
+        valid &= (alpha_t >= min_alpha) & (alpha_i >= min_alpha)
+    dz = depth_t - depth_i
+    behind, same = valid & (dz > tau_delta), valid & (dz <= tau_delta)
+    if cue is not None:  # the SfM cue replaces the depth gap
+        valid_i = (depth_i > 0) if alpha_i is None else (depth_i > 0) & (alpha_i >= min_alpha)
+        behind, same = valid_i & (cue > 0), cue < 0
+    if albedo is not None and base is not None:
+        low, high, bright = albedo < low_a, albedo > high_a, base > high_b
+        m_t = low & bright & behind
+        votes = (high | (low & ~bright)) if dark_votes else high
+        m_o = (valid & votes) | same
+    else:
+        m_t, m_o = behind, same
+    w = mi.Float(1.0)
+    if cos_view is not None:
+        ang = dr.acos(dr.clip(cos_view, -1.0, 1.0)) * mi.Float(180.0 / np.pi)
+        w = dr.clip((80.0 - ang) / 10.0, 0.0, 1.0)
+    one = lambda m: dr.select(erode_patches(m, p), w, 0.0)
+    return one(m_t), one(m_o & ~m_t)
+
+
 def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False):
-    """L_trans masks of the batch (numpy, no gradient) on the p x p patches: (weight_transparent, weight_opaque,
-    coverage, gate), coverage = the share of the batch's pixels in the transparent mask (before the improvement
-    weight; what components: auto reads); gate (with ``gate``, else None) = the rays where t may rise under
-    ``t_raise: masks``: outside the opaque mask, read with or without its dark-surface vote (``t_gate_votes``)."""
+    """L_trans masks of the batch on the p x p patches, on the device: (weight_transparent, weight_opaque, coverage,
+    gate), coverage = the share of the batch's pixels in the transparent mask (before the improvement weight; what
+    components: auto reads; a width-1 Float); gate (with ``gate``, else None) = the rays where t may rise under
+    ``t_raise: masks``: outside the opaque mask, read with or without its dark-surface vote (``t_gate_votes``).
+    ``b``: a :class:`glint_mi.batch.DeviceBatch`."""
     _, Dd, _, DA = out["trans_direct"]
-    P, p = b.patches, b.patch
-    shape = (P, p, p)
-    dI = np.array(out["depth"]).reshape(shape)
-    dT = np.array(Dd).reshape(shape)
-    aI, aT = np.array(out["alpha"]).reshape(shape), np.array(DA).reshape(shape)
-    albedo = b.albedo_prior.mean(1).reshape(shape) if b.albedo_prior is not None else None
-    cI = np.array(out["interface"])
-    base = (cI.mean(0) if cI.ndim == 2 else cI).reshape(shape) if albedo is not None else None
-    n = np.array(out["normal"])
-    n = n.T if n.shape[0] == 3 else n
-    cos = -np.sum(n * b.direction, axis=1).reshape(shape)
-    cos = np.where(np.linalg.norm(n, axis=1).reshape(shape) > 0, cos, 1.0)
-    cue = b.cue.reshape(shape) if b.cue is not None else None
-    masks = lambda dark: transparency_masks(dT, dI, c.tau_delta * extent, albedo, base, cos, alpha_t=aT, alpha_i=aI,
-                                            min_alpha=c.trans_min_alpha, cue=cue, dark_votes=dark)
+    dI, dT = dr.detach(mi.Float(out["depth"])), dr.detach(mi.Float(Dd))
+    aI, aT = dr.detach(mi.Float(out["alpha"])), dr.detach(mi.Float(DA))
+    albedo = _mean3(b.albedo_prior) if b.albedo_prior is not None else None
+    base = _mean3(dr.detach(mi.Color3f(out["interface"]))) if albedo is not None else None
+    n = dr.detach(mi.Vector3f(out["normal"]))
+    d = b.direction
+    cos = -((n.x * d.x + n.y * d.y) + n.z * d.z)
+    cos = dr.select(dr.squared_norm(n) > 0, cos, 1.0)
+    masks = lambda dark: patch_transparency_masks(dT, dI, b.patch, c.tau_delta * extent, albedo, base, cos,
+                                                  alpha_t=aT, alpha_i=aI, min_alpha=c.trans_min_alpha, cue=b.cue,
+                                                  dark_votes=dark)
     w_t, w_o = masks(True)
     allowed = None
     if gate:
         g_o = w_o if c.t_gate_votes == "all" or albedo is None else masks(False)[1]  # no prior: no dark vote
-        allowed = g_o.ravel() <= 0
+        allowed = g_o <= 0
+    coverage = mi.Float(dr.count(w_t > 0)) / dr.width(w_t)
     # weight M_t by how much seeing through improves the photometric fit
-    improve = see_through_gain(b, out).reshape(shape)
-    return ((w_t * improve).ravel().astype(np.float32), w_o.ravel().astype(np.float32), float(np.mean(w_t > 0)),
-            allowed)
+    return w_t * see_through_gain(b, out), w_o, coverage, allowed
 
 
 def depth_gap_stats(c, out: dict, extent: float) -> dict:
@@ -459,13 +513,13 @@ def depth_gap_stats(c, out: dict, extent: float) -> dict:
     return {"gap_behind": share(valid & (dT - dI > tau)), "gap_front": share(valid & (dT - dI < -tau))}
 
 
-def see_through_gain(b, out: dict) -> np.ndarray:
-    """Per ray, how much seeing through improves the photometric fit (numpy, [M] in [0, 1]): the L1 error of the
+def see_through_gain(b, out: dict):
+    """Per ray, how much seeing through improves the photometric fit (Dr.Jit Float in [0, 1]): the L1 error of the
     pixel at t = 1 (the colour transmitted from x_I) against the pixel at t = 0 (the interface's own colour), both
     with the current specular part; gain = clip((e_0 - e_1) / e_0, 0, 1): L_trans's weight on M_t."""
-    rows = lambda x: (lambda a: a.T if a.ndim == 2 and a.shape[0] == 3 else a)(np.array(x))
-    gt, ks = b.rgb, np.array(out["weights"][1])[:, None]
-    spec = ks * rows(out["reflection"])
-    e_0 = np.abs((1 - ks) * rows(out["interface"]) + spec - gt).mean(1)
-    e_1 = np.abs((1 - ks) * rows(out["transmission"]) + spec - gt).mean(1)
-    return np.clip((e_0 - e_1) / np.maximum(e_0, 1e-3), 0.0, 1.0)
+    gt = b.rgb
+    ks = dr.detach(mi.Float(out["weights"][1]))
+    spec = ks * dr.detach(mi.Color3f(out["reflection"]))
+    e_0 = _mean3(dr.abs((1.0 - ks) * dr.detach(mi.Color3f(out["interface"])) + spec - gt))
+    e_1 = _mean3(dr.abs((1.0 - ks) * dr.detach(mi.Color3f(out["transmission"])) + spec - gt))
+    return dr.clip((e_0 - e_1) / dr.maximum(e_0, 1e-3), 0.0, 1.0)

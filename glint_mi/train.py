@@ -346,10 +346,9 @@ class Trainer:
 
         c, st, phase = self.cfg, self.stage(), self.phase
         self.integ.enabled = set(st["traced"])
-        with phase("sample"):
-            b = self.bank.sample(self.rng, c.patches, c.patch)
-            ray = mi.Ray3f(mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction)))
-            fwd = mi.Vector3f(*floats(b.axes[:, :, 2]))
+        with phase("sample"):  # the draws in numpy (3 numbers a patch), the rays and targets gathered on the device
+            b = self.bank.sample_device(self.rng, c.patches, c.patch)
+            ray, fwd = mi.Ray3f(b.origin, b.direction), b.axes[2]
         need = {"trans_direct"} if "transmission" in st["traced"] else set()
         active = mi.Bool(True)
         with phase("forward"):
@@ -494,11 +493,12 @@ class Trainer:
         if changed:
             self.sync()
         if densify:
+            floor = self.strategy.floor()  # one floor for every set of this step (from the interface's statistics)
             for role in changed:
                 others = sum(len(g) for r, g in self.active_sets().items() if r != role)
                 self.sets[role] = self.strategy.densify_and_prune(it, role, self.sets[role], self.adam,
                                                                   prune_large=self.strategy.resets > 0,
-                                                                  others=others)
+                                                                  others=others, floor=floor)
         if reset:
             for role in changed:
                 fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)

@@ -194,18 +194,23 @@ def test_transparency_masks_with_cue_and_albedo():
     assert m_o[:, 6:9].max() == 0                     # no evidence: no vote
 
 
+def _colours(rows):
+    """[M, 3] numpy rows -> mi.Color3f."""
+    rows = np.asarray(rows, np.float32)
+    return mi.Color3f(*[mi.Float(rows[:, k]) for k in range(3)])
+
+
 def test_see_through_gain_compares_the_two_explanations():
     """gain = clip((e_0 - e_1) / e_0, 0, 1): 1 where the transmitted colour alone fits and the interface's does not,
     0 where the interface fits; a blend of two fits does not count as evidence."""
     from types import SimpleNamespace
     from glint_mi.losses import see_through_gain
-    gt = np.array([[0.5, 0.5, 0.5], [0.2, 0.2, 0.2], [0.4, 0.4, 0.4]])
-    b = SimpleNamespace(rgb=gt)
-    out = {"weights": (None, np.zeros(3), None), "reflection": np.zeros((3, 3)),
-           "interface": np.array([[0.9, 0.9, 0.9], [0.2, 0.2, 0.2], [0.5, 0.5, 0.5]]).T,  # channel-major like Dr.Jit
-           "transmission": np.array([[0.5, 0.5, 0.5], [0.6, 0.6, 0.6], [0.3, 0.3, 0.3]]).T}
-    g = see_through_gain(b, out)
-    np.testing.assert_allclose(g, [1.0, 0.0, 0.0], atol=1e-12)  # the third: both off by 0.1, a blend would fit
+    b = SimpleNamespace(rgb=_colours([[0.5, 0.5, 0.5], [0.2, 0.2, 0.2], [0.4, 0.4, 0.4]]))
+    out = {"weights": (None, mi.Float(np.zeros(3)), None), "reflection": _colours(np.zeros((3, 3))),
+           "interface": _colours([[0.9, 0.9, 0.9], [0.2, 0.2, 0.2], [0.5, 0.5, 0.5]]),
+           "transmission": _colours([[0.5, 0.5, 0.5], [0.6, 0.6, 0.6], [0.3, 0.3, 0.3]])}
+    g = np.array(see_through_gain(b, out))
+    np.testing.assert_allclose(g, [1.0, 0.0, 0.0], atol=1e-6)  # the third: both off by 0.1, a blend would fit
 
 
 @pytest.mark.parametrize("votes", ["all", "geometric"])
@@ -220,17 +225,49 @@ def test_t_gate_reads_the_opaque_votes_it_is_told(votes):
     n = p * p
     albedo = np.full((n, 3), 0.02)
     albedo.reshape(p, p, 3)[:, 4:] = 0.5                       # right half: HighA
-    b = SimpleNamespace(patches=1, patch=p, albedo_prior=albedo, cue=None, rgb=np.full((n, 3), 0.3),
-                        direction=np.tile([0.0, 0.0, 1.0], (n, 1)))
-    normal = np.tile([[0.0], [0.0], [-1.0]], (1, n))
-    out = {"trans_direct": (None, np.full(n, 3.0), None, np.ones(n)), "depth": np.full(n, 2.0),
-           "alpha": np.ones(n), "interface": np.full((3, n), 0.1), "normal": normal,
-           "weights": (None, np.zeros(n), None), "reflection": np.zeros((3, n)), "transmission": np.zeros((3, n))}
+    b = SimpleNamespace(patches=1, patch=p, albedo_prior=_colours(albedo), cue=None, rgb=_colours(np.full((n, 3), 0.3)),
+                        direction=mi.Vector3f(0.0, 0.0, 1.0))
+    full = lambda v: mi.Float(np.full(n, v, np.float32))
+    out = {"trans_direct": (None, full(3.0), None, full(1.0)), "depth": full(2.0), "alpha": full(1.0),
+           "interface": _colours(np.full((n, 3), 0.1)), "normal": mi.Vector3f(full(0.0), full(0.0), full(-1.0)),
+           "weights": (None, full(0.0), None), "reflection": _colours(np.zeros((n, 3))),
+           "transmission": _colours(np.zeros((n, 3)))}
     cfg = TrainConfig(t_gate_votes=votes)
     w_t, w_o, cover, allowed = batch_transparency_masks(cfg, b, out, 1.0, gate=True)
-    w_o, allowed = w_o.reshape(p, p), allowed.reshape(p, p)
-    assert cover == 0 and w_o[1:-1, 1:-1].min() == 1            # L_trans: opaque everywhere (dark, or HighA)
+    w_o, allowed = np.array(w_o).reshape(p, p), np.array(allowed).reshape(p, p)
+    assert float(cover[0]) == 0 and w_o[1:-1, 1:-1].min() == 1  # L_trans: opaque everywhere (dark, or HighA)
     assert not allowed[1:-1, 5:-1].any()                        # HighA (eroded) closes the gate in both modes
     dark = allowed[1:-1, 1:3]                                   # the dark vote closes it only with all
     assert dark.all() if votes == "geometric" else not dark.any()
     assert batch_transparency_masks(cfg, b, out, 1.0)[3] is None
+
+
+@pytest.mark.parametrize("albedo, cue, alphas", [(True, False, True), (False, False, False), (True, True, True)])
+def test_device_patch_masks_equal_the_numpy_definition(albedo, cue, alphas):
+    """patch_transparency_masks (Dr.Jit, per ray, patches one after the other) against transparency_masks (numpy,
+    on the [P, p, p] stack): the same masks pixel for pixel, weights within float32 rounding; random depths, alphas,
+    albedo, base colours, view angles across the 70-80 degree ramp and SfM cues on 64 patches of 8 x 8."""
+    from glint_mi.losses import patch_transparency_masks
+    rng = np.random.default_rng(4)
+    P, p = 64, 8
+    shape = (P, 2, 2)  # drawn per 4 x 4 block, so that something survives the erosion
+    f32 = lambda x: np.asarray(np.repeat(np.repeat(x, 4, axis=1), 4, axis=2), np.float32)
+    D_I = f32(rng.uniform(1, 3, shape) * (rng.random(shape) > 0.1))
+    D_T = f32(rng.uniform(1, 3, shape) * (rng.random(shape) > 0.1))
+    A_I, A_T = f32(rng.uniform(0.3, 1, shape)), f32(rng.uniform(0.3, 1, shape))
+    alb = f32(rng.choice([0.02, 0.07, 0.5], shape)) if albedo else None
+    base = f32(rng.uniform(0, 0.5, shape)) if albedo else None
+    cos = f32(np.cos(np.radians(rng.uniform(40, 85, shape))))
+    cues = f32(rng.choice([-1.0, 0.0, 1.0], shape)) if cue else None
+    kw = dict(alpha_t=A_T if alphas else None, alpha_i=A_I if alphas else None, cue=cues)
+    ref_t, ref_o = transparency_masks(D_T, D_I, 0.01, alb, base, cos, **kw)
+    dev = lambda x: None if x is None else mi.Float(x.ravel())
+    got_t, got_o = patch_transparency_masks(dev(D_T), dev(D_I), p, 0.01, dev(alb), dev(base), dev(cos),
+                                            **{k: dev(v) for k, v in kw.items()})
+    for got, ref in ((got_t, ref_t), (got_o, ref_o)):
+        got, ref = np.array(got), ref.ravel()
+        np.testing.assert_array_equal(got > 0, ref > 0)
+        np.testing.assert_allclose(got, ref, atol=2e-5)
+        assert (ref > 0).sum() >= 16
+    both = np.concatenate([ref_t.ravel(), ref_o.ravel()])
+    assert ((both > 0) & (both < 1)).sum() >= 16  # pixels on the view-angle ramp
