@@ -36,13 +36,20 @@ class GaussianSetRef:
 
     def refresh(self) -> None:
         """Recompute ``reach``, the longest shell diameter of the set (metres): a ray started that far behind its
-        origin enters every shell that contains the origin. An opaque Dr.Jit scalar, so kernels do not recompile
-        when it changes."""
+        origin enters every shell that contains the origin. A width-1 array reduced on the device (nothing read
+        back), so kernels do not recompile when it changes."""
         params = mi.traverse(self.shape)
-        data = np.array(params["data"], np.float64).reshape(-1, 10)
-        reach = 2.0 * float(params["extent"]) * float(data[:, 3:6].max(initial=0.0)) if len(data) else 0.0
-        self.reach = dr.opaque(mi.Float, reach * (1.0 + 1e-3) + 1e-6)
-        self._data, self._extent = data, float(params["extent"])
+        data = dr.detach(mi.Float(params["data"]))
+        self._extent = float(params["extent"])
+        n = dr.width(data) // 10
+        if n:
+            i = dr.arange(mi.UInt32, n * 3)
+            scale = dr.max(dr.gather(mi.Float, data, (i // 3) * 10 + 3 + i % 3))
+            self.reach = mi.Float(2.0 * self._extent * scale * (1.0 + 1e-3) + 1e-6)
+            dr.make_opaque(self.reach)
+        else:
+            self.reach = dr.opaque(mi.Float, 1e-6)
+        self._data = data  # the native traversal reads it on the host when it next builds (native())
         self._shells_stale = True
 
     def native(self) -> "native.ShellSet":
@@ -53,13 +60,13 @@ class GaussianSetRef:
         shells = getattr(self, "_shells", None)
         if shells is not None and not self._shells_stale:
             return shells
-        if (shells is not None and shells.dynamic and len(shells) == len(self._data)
+        data = np.array(self._data, np.float64).reshape(-1, 10)
+        if (shells is not None and shells.dynamic and len(shells) == len(data)
                 and shells.extent == self._extent and self._refits < self.REBUILD_EVERY):
-            shells.refit(self._data)
+            shells.refit(data)
             self._refits += 1
         else:
-            self._shells = native.ShellSet(self._data, self._extent,
-                                           dynamic=shells is not None and self.REBUILD_EVERY > 0)
+            self._shells = native.ShellSet(data, self._extent, dynamic=shells is not None and self.REBUILD_EVERY > 0)
             self._refits = 0
         self._shells_stale = False
         return self._shells
