@@ -142,3 +142,29 @@ def test_host_round_trip_keeps_what_the_device_does_not_hold():
     for f in RAW_FIELDS:
         np.testing.assert_array_equal(getattr(gs, f), before[f])
     assert "interface" not in adam.state and "interface" not in strat.grad_sum
+
+
+def test_learning_rates_do_not_depend_on_the_batch_size():
+    """The rule for learning rates as batches grow: none to change. The loss is a mean over the batch's rays, so a
+    Gaussian's gradient scales with its share of the batch; Adam divides by the gradient's running RMS, so three
+    steps with every gradient x 1/64 or x 64 move the parameters as the unscaled ones do (to 1e-5 of a step; eps
+    1e-15 is far below any gradient here). What the batch size changes is the number of steps per epoch and the
+    gradient's noise, not the step's length."""
+    rng = np.random.default_rng(9)
+    start = random_set(rng, n=32)
+    grads = [random_grads(rng, 32, start.sh.shape[1], hit=0.6) for _ in range(3)]
+    moved = {}
+    for scale in (1.0, 1.0 / 64, 64.0):
+        gs = GaussianSet(**{f: getattr(start, f).copy() for f in RAW_FIELDS})
+        adam = Adam(LRS)
+        dev = DeviceUpdate(adam, "surfel", 1.0)
+        dev.load("interface", gs)
+        for g in grads:
+            device_step(dev, {k: v * np.float32(scale) for k, v in g.items()}, "interface", 1, set(), 1.0)
+        dev.pull("interface", gs)
+        moved[scale] = {f: getattr(gs, f) - getattr(start, f) for f in RAW_FIELDS}
+    for scale in (1.0 / 64, 64.0):
+        for f in RAW_FIELDS:
+            ref = moved[1.0][f]
+            assert np.abs(ref).max() > 0, f
+            np.testing.assert_allclose(moved[scale][f], ref, rtol=0, atol=1e-5 * np.abs(ref).max() + 1e-7, err_msg=f)
