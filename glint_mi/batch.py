@@ -71,7 +71,14 @@ class RayBank:
         self.prior_info = prior_conventions(root) if use_priors else {}
         for kind in ("depth", "normal", "albedo"):
             maps = [load_prior(root, v, kind) if use_priors else None for v in views]
-            if all(m is not None for m in maps):
+            lack = [v.name for v, m in zip(views, maps) if m is None]
+            if lack and len(lack) < len(views):  # a kind for some views only would be dropped without a word
+                from .data.priors import PriorError
+
+                raise PriorError(f"{root}/priors/{kind}: {len(lack)} of {len(views)} training views have no {kind} "
+                                 f"map ({', '.join(lack[:8])}{', ...' if len(lack) > 8 else ''}); write one for every "
+                                 f"training view, or remove the folder (or train with --set priors=none).")
+            if not lack:
                 self.priors[kind] = np.concatenate([m.reshape(h * w, -1) for m, (h, w) in zip(maps, self.sizes)])
         self.priors.setdefault("depth", None)
         self.depth_inverse = self.prior_info.get("depth") == "disparity"

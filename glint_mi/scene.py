@@ -88,6 +88,23 @@ def _props(elem) -> dict:
     return out
 
 
+# the properties an optimisation scene's integrator and shapes take (what scene_xml writes, and what it documents)
+INTEGRATOR_KEYS = ("dataset", "missing_images", "components", "max_order")
+SHAPE_KEYS = ("role", "init", "kernel", "filename", "grid_n", "grid_k")
+
+
+def _known(path: Path, where: str, props: dict, keys: tuple) -> None:
+    """A misspelled property would be ignored without a word: refuse it, naming the valid ones."""
+    import difflib
+
+    for k in props:
+        if k not in keys:
+            near = difflib.get_close_matches(k, keys, n=1)
+            raise SceneError(f"{path}: {where} has no property '{k}'"
+                             + (f" (did you mean '{near[0]}'?)" if near else "")
+                             + f"; its properties are {', '.join(keys)}.")
+
+
 def read_scene(path: str | Path) -> OptimScene:
     path = Path(path)
     if not path.exists():
@@ -101,6 +118,7 @@ def read_scene(path: str | Path) -> OptimScene:
         raise SceneError(f"{path}: no <integrator type=\"glint\">; write the file with "
                          f"`python -m glint_mi.scene DATASET > {path.name}`.")
     props = _props(integ)
+    _known(path, "the glint integrator", props, INTEGRATOR_KEYS)
     if not props.get("dataset"):
         raise SceneError(f"{path}: the glint integrator has no <string name=\"dataset\" value=\"...\"/>; add the "
                          f"dataset folder (COLMAP, transforms.json or generated layout) to it.")
@@ -114,6 +132,7 @@ def read_scene(path: str | Path) -> OptimScene:
     for shape in integ.iter("shape"):
         role = shape.attrib.get("name", "")
         p = _props(shape)
+        _known(path, f"<shape name=\"{role}\">", p, SHAPE_KEYS)
         role = p.get("role", role)
         if role not in cv.ROLES:
             raise SceneError(f"{path}: <shape name=\"{role}\">: the name must be one of {cv.ROLES}.")
@@ -351,6 +370,13 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(ds.summary(), file=sys.stderr)
+    from .data.priors import check_priors
+
+    problems = check_priors(ds.root, ds.train_views)
+    if problems:
+        for line in problems:
+            print(f"error: {line}", file=sys.stderr)
+        return 2
     sys.stdout.write(scene_xml(args.dataset, args.components, args.kernel, args.grid_n, args.grid_k, missing=missing))
     return 0
 

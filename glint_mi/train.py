@@ -151,6 +151,12 @@ class Trainer:
             self.log(self.ds.summary())
         if not self.ds.train_views:
             raise DatasetError(f"{self.ds.root}: no training views (check split.json).")
+        if self.cfg.priors == "all":  # before SfM and initialisation: a bad prior is found in seconds, not minutes
+            from .data.priors import PriorError, check_priors
+
+            problems = check_priors(self.ds.root, self.ds.train_views)
+            if problems:
+                raise PriorError("\n".join(problems))
         self._set_budget()
         sets, (lo, hi, extent), rep = initial_sets(self.scene_spec, self.ds, self.cfg, self.rng, self.log)
         roles = self.cfg.roles()

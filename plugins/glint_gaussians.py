@@ -183,15 +183,23 @@ def save_ply(shape, path) -> Path:
     return to_gaussian_set(shape).save_ply(path)
 
 
+PROPERTIES = ("filename, data, centers, scales, quaternions, opacities, sh_coeffs, specular, transparency, role, "
+              "kernel, extent, min_shell_ratio, opacity_shells")
+
+
 def _factory(props):
     sid = props.id()
     role = props.get("role", None)
     source = f"glint_gaussians '{sid or role or '?'}'"
     gset = gaussian_set_from_props(props, source)
-    return make_shape(gset, kernel=props.get("kernel", "surfel"), role=role, shape_id=sid or (role or ""),
-                      extent=props.get("extent", SHELL_EXTENT), min_shell_ratio=props.get("min_shell_ratio", 0.3),
-                      opacity_shells=bool(props.get("opacity_shells", True)),
-                      source=source)
+    kw = dict(kernel=props.get("kernel", "surfel"), extent=props.get("extent", SHELL_EXTENT),
+              min_shell_ratio=props.get("min_shell_ratio", 0.3), opacity_shells=bool(props.get("opacity_shells", True)))
+    unread = props.unqueried()
+    if unread:  # a misspelling, or a property that 'filename' overrides: either way it would be ignored
+        raise GaussianDataError(f"{source}: propert{'ies' if len(unread) > 1 else 'y'} "
+                                f"{', '.join(repr(n) for n in unread)} not read; glint_gaussians takes {PROPERTIES} "
+                                f"('filename' alone, or 'data' / 'centers' with their columns).")
+    return make_shape(gset, role=role, shape_id=sid or (role or ""), source=source, **kw)
 
 
 def register() -> None:

@@ -178,6 +178,12 @@ def _group_value(group: str, vals: list):
     return mi.Color3f(*vals)
 
 
+# every property the integrator reads (besides the nested Gaussian shapes)
+PROPERTIES = ("components", "max_order", "max_hits", "blend", "traversal", "aovs", "ior", "max_depth", "dataset",
+              "detach_depth", "gradient", "stored_hits_mb", "alpha_min", "alpha_max", "transmittance_min",
+              "inside_origins", "kbuffer_k", "fresnel", "env_levels", "env_file", "reflect_min", "transmit_min")
+
+
 class GlintIntegrator(GaussianPasses):
     """The image model. One set's passes are :class:`~.glint_march.GaussianPasses`, mesh mode
     :func:`~.glint_mesh.trace_meshes`."""
@@ -243,6 +249,7 @@ class GlintIntegrator(GaussianPasses):
             raise ValueError(f"glint: unknown AOV group(s) {bad} in 'aovs'; choose from {list(AOV_GROUPS)}.")
         self.aov_groups = groups
 
+        unqueried = props.unqueried()  # before the loop below reads every property
         self.sets: dict[str, GaussianSetRef] = {}
         for name in props.keys():
             value = props.get(name)
@@ -258,6 +265,15 @@ class GlintIntegrator(GaussianPasses):
         if self.sets and "interface" not in self.sets:
             raise ValueError("glint: Gaussian mode needs an 'interface' set (the transmission and reflection sets are "
                              "traced from the interface's expected depth).")
+        unknown = [n for n in unqueried if not isinstance(props.get(n), mi.Object)]
+        if unknown:  # a misspelled property would otherwise be ignored without a word
+            import difflib
+
+            near = {n: difflib.get_close_matches(n, PROPERTIES, n=1) for n in unknown}
+            raise ValueError("glint: unknown propert" + ("ies " if len(unknown) > 1 else "y ")
+                             + ", ".join(f"'{n}'" + (f" (did you mean '{near[n][0]}'?)" if near[n] else "")
+                                         for n in unknown)
+                             + f"; the integrator's properties are {', '.join(PROPERTIES)}.")
         self._forward = mi.Vector3f(0, 0, 1)
         self._path = None
 

@@ -100,10 +100,12 @@ def model_folder(root: Path) -> Path:
 
 
 def read_model(sparse: Path):
-    if (sparse / "cameras.bin").exists():
-        return read_binary(sparse)
-    if (sparse / "cameras.txt").exists():
-        return read_text(sparse)
+    for ext, reader in ((".bin", read_binary), (".txt", read_text)):
+        if (sparse / f"cameras{ext}").exists():
+            if not (sparse / f"images{ext}").exists():
+                raise DatasetError(f"{sparse}: cameras{ext} but no images{ext}; a COLMAP model needs both (export "
+                                   f"the model again, e.g. `colmap model_converter --output_type TXT`).")
+            return reader(sparse)
     raise DatasetError(f"{sparse}: no cameras.txt or cameras.bin (expected a COLMAP model in sparse/0).")
 
 

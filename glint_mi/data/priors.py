@@ -35,6 +35,12 @@ class PriorError(DatasetError):
     """Bad prior file or PRIORS.json; the message names the file and the fix."""
 
 
+CONVENTION_KEYS = {"depth": ("type",), "normal": ("frame",), "albedo": ("space",), "glass": ()}
+# what a PRIORS.json may hold besides the conventions: the record glint_mi's generator writes, and free notes
+PRIORS_KEYS = (*CONVENTION_KEYS, "derived_from_ground_truth", "model", "seed", "kinds", "corruption", "views",
+               "measured", "notes")
+
+
 def prior_conventions(root: Path) -> dict:
     """The conventions of ``root``/priors/PRIORS.json, validated: {'depth': 'depth'|'disparity', 'normal':
     'opencv'|'opengl', 'albedo': 'linear'|'srgb'|None (by file type)}, plus the file's own record."""
@@ -45,6 +51,25 @@ def prior_conventions(root: Path) -> dict:
             record = json.loads(p.read_text())
         except json.JSONDecodeError as e:
             raise PriorError(f"{p}: not valid JSON ({e}).") from None
+    if not isinstance(record, dict):
+        raise PriorError(f"{p}: must hold a JSON object, e.g. {{\"depth\": {{\"type\": \"disparity\"}}}}.")
+    unknown = sorted(set(record) - set(PRIORS_KEYS))
+    if unknown:
+        raise PriorError(f"{p}: unknown key{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))}; the "
+                         f"keys are {', '.join(CONVENTION_KEYS)} (conventions) and "
+                         f"{', '.join(k for k in PRIORS_KEYS if k not in CONVENTION_KEYS)} (the record a generator "
+                         f"or you keep; 'notes' for anything else).")
+    for kind, keys in CONVENTION_KEYS.items():
+        section = record.get(kind)
+        if section is None:
+            continue
+        if not isinstance(section, dict):
+            raise PriorError(f"{p}: '{kind}' must be an object with {' / '.join(keys) or 'no keys'}, e.g. "
+                             f"{{\"{kind}\": {{\"{keys[0]}\": ...}}}}." if keys else f"{p}: '{kind}' must be {{}}.")
+        bad = sorted(set(section) - set(keys))
+        if bad:
+            raise PriorError(f"{p}: unknown key{'s' if len(bad) > 1 else ''} {', '.join(map(repr, bad))} in "
+                             f"'{kind}'; {'its key is ' + repr(keys[0]) if keys else 'it takes no keys'}.")
     depth = str((record.get("depth") or {}).get("type", "depth"))
     frame = str((record.get("normal") or {}).get("frame", "opencv"))
     space = (record.get("albedo") or {}).get("space")
@@ -133,6 +158,30 @@ def load_prior(root: Path, view, kind: str, conventions: dict | None = None) -> 
         n = np.linalg.norm(arr, axis=-1, keepdims=True)
         arr = np.where(n > 0.5, arr / np.maximum(n, 1e-12), 0.0).astype(np.float32)
     return np.asarray(arr, np.float32)
+
+
+def check_priors(root: Path, views) -> list[str]:
+    """Every problem of ``root``'s priors for ``views`` (the training views), one line each: PRIORS.json's keys and
+    conventions, each file's decoding, channels, size and finiteness, and a kind present for some views only. Empty
+    when they can be trained on; reads every map once."""
+    try:
+        conv = prior_conventions(root)
+    except PriorError as e:
+        return [str(e)]
+    problems = []
+    for kind in KINDS:
+        lack = []
+        for v in views:
+            try:
+                if load_prior(root, v, kind, conv) is None:
+                    lack.append(v.name)
+            except PriorError as e:
+                problems.append(str(e))
+        if lack and len(lack) < len(views):
+            problems.append(f"{Path(root)}/priors/{kind}: {len(lack)} of {len(views)} training views have no {kind} "
+                            f"map ({', '.join(lack[:8])}{', ...' if len(lack) > 8 else ''}); write one for every "
+                            f"training view, or remove the folder (or train with --set priors=none).")
+    return problems
 
 
 def priors_are_derived(root: Path) -> bool:

@@ -37,6 +37,11 @@ def _camera_model(get, where: str) -> tuple[str, list]:
     return "PINHOLE", []
 
 
+def _number(x) -> bool:
+    """A finite real number (not a bool, not a string)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and bool(np.isfinite(x))
+
+
 def read_frames(path: Path) -> tuple[list[Frame], dict | None, np.ndarray | None, np.ndarray | None]:
     """(frames in file order, split or None, points [P,3] or None, colours [P,3] or None)."""
     root = path.parent
@@ -58,16 +63,33 @@ def read_frames(path: Path) -> tuple[list[Frame], dict | None, np.ndarray | None
         w, h = get("w"), get("h")
         if (w is None or h is None) and img is not None:
             w, h = image_size(img)
-        fx, fy = get("fl_x"), get("fl_y") or get("fl_x")
+        for key in ("w", "h"):
+            value = get(key)
+            if value is not None and not (_number(value) and float(value) == int(value) and int(value) > 0):
+                raise DatasetError(f"{where}: '{key}' = {value!r}: the image size in pixels must be a positive integer "
+                                   f"(or leave it out: it is read from the image).")
+        fx, fy = get("fl_x"), get("fl_y") if get("fl_y") is not None else get("fl_x")
         if fx is None:
-            if get("camera_angle_x") is None:
+            angle = get("camera_angle_x")
+            if angle is None:
                 raise DatasetError(f"{where}: give 'fl_x' (pixels) or 'camera_angle_x' (radians), per frame or at "
                                    f"the top level.")
+            if not (_number(angle) and 0 < float(angle) < np.pi):
+                raise DatasetError(f"{where}: 'camera_angle_x' = {angle!r}: the horizontal field of view must be in "
+                                   f"radians, between 0 and pi (or give 'fl_x' in pixels).")
             if w is None:
                 w = 0
-            fx = fy = 0.5 * float(w) / np.tan(0.5 * float(get("camera_angle_x")))
+            fx = fy = 0.5 * float(w) / np.tan(0.5 * float(angle))
+        for key, value in (("fl_x", fx), ("fl_y", fy)):
+            if not (_number(value) and float(value) > 0):
+                raise DatasetError(f"{where}: '{key}' = {value!r}: the focal length must be a positive number of "
+                                   f"pixels (or give 'camera_angle_x' in radians instead).")
         cx = get("cx") if get("cx") is not None else (w or 0) / 2
         cy = get("cy") if get("cy") is not None else (h or 0) / 2
+        for key, value in (("cx", cx), ("cy", cy)):
+            if not _number(value):
+                raise DatasetError(f"{where}: '{key}' = {value!r}: the principal point must be a finite number of "
+                                   f"pixels (or leave it out: the image centre).")
         m = np.asarray(fr["transform_matrix"], float)
         if m.shape != (4, 4) or not np.isfinite(m).all():
             raise DatasetError(f"{where}.transform_matrix must be a finite 4x4 matrix.")
