@@ -12,6 +12,7 @@ a step spent in BVH traversal (forward + the replay, which re-traces every pass)
     .venv/bin/python benchmarks/profile_step.py --run out/demo/run     # a trained run: its config and Gaussians
     .venv/bin/python benchmarks/profile_step.py --scene SCENE.xml [--at 0.3] [--steps 30]
     .venv/bin/python benchmarks/profile_step.py --run RUN --ab [NAME]   # + the exact speed-ups (NAME: those named so) off vs on
+    .venv/bin/python benchmarks/profile_step.py --variant cuda_ad_rgb --run RUN --targets   # + issue 43's GPU targets
 
 Syncing between phases removes the overlap of Python with running kernels, so the phases add up to a little more
 than an unprofiled step; the table prints both. Results: benchmarks/results/profile_step_<name>.{md,json}.
@@ -35,6 +36,10 @@ sys.path.insert(0, str(ROOT))
 
 import glint_mi  # noqa: E402
 
+if "--variant" in sys.argv[:-1]:  # before Mitsuba loads: e.g. --variant cuda_ad_rgb (else $GLINT_VARIANT or LLVM)
+    import os
+
+    os.environ["GLINT_VARIANT"] = sys.argv[sys.argv.index("--variant") + 1]
 glint_mi.set_variant()
 import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
@@ -227,6 +232,70 @@ def traversal(tr: Trainer) -> list[dict]:
     return rows
 
 
+# Issue 43's targets on one H100/H200: training rays/s at >= 1M rays a step, a 480 x 270 view's render rate, and
+# the paper's budget (60k iterations of one 480 x 270 image: 7.8 G rays) in minutes.
+TARGETS = {"train_rays_per_s": 5e6, "render_fps_480x270": 51.0, "paper_budget_min": 30.0}
+PAPER_RAYS = 60000 * 480 * 270
+
+
+def view_rays(view, width: int, height: int):
+    """Rays through the pixel centres of ``view``'s camera at ``width`` x ``height`` (intrinsics scaled)."""
+    import dataclasses
+
+    from glint_mi.batch import pixel_rays
+
+    K = view.K.copy()
+    K[0] *= width / view.width
+    K[1] *= height / view.height
+    v = dataclasses.replace(view, width=width, height=height, K=K)
+    d = pixel_rays(v).astype(np.float32)
+    o = np.broadcast_to(view.c2w[:3, 3].astype(np.float32), d.shape)
+    return mi.Ray3f(mi.Point3f(*floats(o)), mi.Vector3f(*floats(d))), mi.Vector3f(*[float(x) for x in view.c2w[:3, 2]])
+
+
+def targets(tr: Trainer, rays: int, steps_n: int = 3) -> dict:
+    """The targets measured here: training rays/s with ``rays`` a step (patches of the run's size; Adam, the
+    objective and the replay as in training, no structure steps), the render rate of a 480 x 270 view (every
+    pass the model has, one kernel sequence per frame, evaluated; the first frame compiles and is not counted),
+    and the paper's budget at the training rate measured."""
+    c = tr.cfg
+    patches = max(1, rays // (c.patch * c.patch))
+    tr.cfg = TrainConfig.from_dict({**c.to_dict(), "patches": patches}, source="targets")
+    it0 = tr.it
+    times = steps(tr, steps_n + 1, None)[1:]  # the first step compiles the kernels of this batch size
+    tr.it, tr.cfg = it0, c
+    step_s = statistics.median(times)
+    n_rays = patches * c.patch * c.patch
+    integ = tr.integ_for_eval()
+    view = (tr.ds.test_views or tr.ds.train_views)[0]
+    ray, fwd = view_rays(view, 480, 270)
+
+    def frame():
+        with dr.suspend_grad():
+            out = integ.trace(ray, mi.Bool(True), forward=fwd)
+            dr.eval(out["rgb"])
+        dr.sync_thread()
+
+    frame_s = timed(frame, reps=5)
+    rate = n_rays / step_s
+    return {"rays_per_step": n_rays, "step_s": step_s, "train_rays_per_s": rate, "render_fps_480x270": 1.0 / frame_s,
+            "paper_budget_min": PAPER_RAYS / rate / 60.0}
+
+
+def targets_markdown(t: dict) -> str:
+    rows = [("training rays/s", f"{t['train_rays_per_s'] / 1e6:.3f} M at {t['rays_per_step']:,} rays a step "
+             f"({1e3 * t['step_s']:.0f} ms)", ">= 5 M at >= 1M rays a step",
+             t["train_rays_per_s"] >= TARGETS["train_rays_per_s"] and t["rays_per_step"] >= 2 ** 20),
+            ("render, one 480 x 270 view", f"{t['render_fps_480x270']:.2f} fps", ">= 51 fps",
+             t["render_fps_480x270"] >= TARGETS["render_fps_480x270"]),
+            ("the paper's budget (7.8 G rays) at that rate", f"{t['paper_budget_min']:.0f} min", "<= 30 min",
+             t["paper_budget_min"] <= TARGETS["paper_budget_min"])]
+    lines = [f"Issue 43's targets on this machine ({summary()}):", "", "| | measured | target | met |",
+             "|---|---|---|---|"]
+    lines += [f"| {a} | {b} | {c} | {'yes' if ok else 'no'} |" for a, b, c, ok in rows]
+    return "\n".join(lines + [""])
+
+
 def markdown(name, tr, plain, prof, n, trav, before_after=None, only: str = "") -> str:
     rays = tr.cfg.patches * tr.cfg.patch ** 2
     step = statistics.median(plain)
@@ -285,6 +354,11 @@ def main(argv=None) -> int:
                     help="also time the exact speed-ups without a config switch (those whose name holds NAME, e.g. "
                     "'k-buffer', or several: 'list arrays,Adam'; all without it) off and on, in alternating blocks "
                     "of --steps steps")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"), help="results folder")
+    ap.add_argument("--variant", help="Mitsuba variant (e.g. cuda_ad_rgb; default $GLINT_VARIANT or llvm_ad_rgb)")
+    ap.add_argument("--targets", action="store_true", help="also measure issue 43's GPU targets (training rays/s "
+                    "at --target-rays a step, a 480 x 270 view's fps, the paper's budget in minutes)")
+    ap.add_argument("--target-rays", type=int, default=2 ** 20, help="rays a step for --targets (default 1,048,576)")
     args = ap.parse_args(argv)
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     quiet = lambda *a, **k: None
@@ -313,15 +387,18 @@ def main(argv=None) -> int:
     tr.it = it0
     before_after = ab(tr, args.steps, only=args.ab) if args.ab is not None else None
     text = markdown(name, tr, plain, prof, args.steps, trav, before_after, only=args.ab or "")
+    tgt = targets(tr, args.target_rays) if args.targets else None
+    if tgt is not None:
+        text += "\n" + targets_markdown(tgt)
     print(text)
-    out = ROOT / "benchmarks" / "results"
+    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / f"profile_step_{name}.md").write_text(text + "\n")
     (out / f"profile_step_{name}.json").write_text(json.dumps(
         {"name": name, **{k: v for k, v in describe().items() if k in ("variant", "device", "cpu", "cores")},
          "rays_per_step": tr.cfg.patches * tr.cfg.patch ** 2, "step_s": plain,
          "phases": {k: dict(v) for k, v in prof.rows.items()}, "steps": args.steps, "traversal": trav,
-         "before_after_step_s": before_after,
+         "before_after_step_s": before_after, "targets": tgt,
          "gaussians": {r: len(s) for r, s in tr.sets.items() if r not in tr.dropped}}, indent=1))
     return 0
 

@@ -279,7 +279,7 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("--data", type=Path, required=True, help="folder of generated scenes")
     ap.add_argument("--make-data", type=int, metavar="N", help="generate N scenes into --data first (if missing)")
-    ap.add_argument("--preset", default="bench", choices=["tiny", "quick", "bench"])
+    ap.add_argument("--preset", default="bench", choices=["tiny", "quick", "bench", "gpu"])
     ap.add_argument("--variant", default=DEFAULT_VARIANT, choices=sorted(VARIANTS),
                     help="schedule: glint_mi (default: the supplement's without the refine stage), supplement, release")
     ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")

@@ -223,3 +223,21 @@ def test_budget_curve_compares_like_with_like(tmp_path):
     md = (tmp_path / "o" / "budget.md").read_text()
     assert "| glint | 3 | 2 | 21.00 (20.00-22.00) |" in md and "| 3dgs | 10 | 1 | 23.00 |" in md
     assert (tmp_path / "o" / "budget.png").stat().st_size > 0
+
+
+def test_profile_step_measures_the_gpu_targets(tmp_path):
+    """benchmarks/profile_step.py --targets (issue 43's figures; the GPU runs it with --variant cuda_ad_rgb): the
+    training rate at a given batch, a 480 x 270 view's render rate and the paper's budget at that rate, in the
+    table and the JSON with the variant that ran them."""
+    cmd = [sys.executable, str(ROOT / "benchmarks" / "profile_step.py"), "--preset", "tiny", "--steps", "2",
+           "--warm", "1", "--targets", "--target-rays", "4096", "--variant", "llvm_ad_rgb", "--name", "t",
+           "--out", str(tmp_path)]
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=900)
+    assert r.returncode == 0, r.stderr[-3000:]
+    res = json.loads((tmp_path / "profile_step_t.json").read_text())
+    t = res["targets"]
+    assert res["variant"] == "llvm_ad_rgb" and t["rays_per_step"] == 4096
+    assert t["train_rays_per_s"] == pytest.approx(4096 / t["step_s"])
+    assert t["paper_budget_min"] == pytest.approx(60000 * 480 * 270 / t["train_rays_per_s"] / 60)
+    assert 0 < t["render_fps_480x270"] < 1e4
+    assert "| render, one 480 x 270 view |" in (tmp_path / "profile_step_t.md").read_text()

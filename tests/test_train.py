@@ -655,6 +655,32 @@ def test_config_saved_before_epochs_keeps_its_iterations(tmp_path):
     assert (c.iterations, c.epochs) == (123, 0.0) and c.with_budget(10 ** 6).iterations == 123
 
 
+def test_config_saved_before_the_relative_floor_keeps_its_absolute_floor(tmp_path):
+    """A run folder from before densify_grad_rel resumes with the floor it trained with (2e-4 absolute)."""
+    import json
+    p = tmp_path / "config.json"
+    p.write_text(json.dumps({"preset": "quick", "iterations": 123, "densify_grad": 2e-4}))
+    c = TrainConfig.load(p)
+    assert (c.densify_grad, c.densify_grad_rel) == (2e-4, 0.0)
+    assert (TrainConfig().densify_grad, TrainConfig().densify_grad_rel) == (0.0, 0.12)
+
+
+def test_gpu_preset_is_the_papers_budget(tmp_path):
+    """The gpu preset trains 60k iterations of one 480 x 270 image's worth of rays (7.8 G rays, the paper's), with
+    3DGS's densification and reset intervals in iterations; its lists fit the default cap; the generator's gpu
+    preset renders 480 x 270 views (here 2 views at 1 spp)."""
+    c = TrainConfig.for_preset("gpu")
+    c.validate()
+    assert c.rays_per_iteration() == 480 * 270 and c.iterations == 60000 and c.epochs == 0
+    assert c.iterations * c.rays_per_iteration() == pytest.approx(7.776e9)
+    assert (c.every(c.densify_every), c.every(c.reset_every), c.sh_degree, c.lr_multiplier) == (100, 3000, 3, 1.0)
+    assert c.rays_per_iteration() * c.max_hits * 4 * 5 <= c.stored_hits_mb * 2 ** 20  # lists stored, not re-traced
+    out = tmp_path / "gpu_room"
+    make_scene(out, seed=1, preset=Preset.named("gpu", views=2, spp=1), sfm="none")
+    v = load_dataset(out).views[0]
+    assert (v.width, v.height) == (480, 270) and v.load_image().shape == (270, 480, 3)
+
+
 def test_depth_prior_alignment_to_sfm_points(room, rng):
     """align_depth_priors recovers each view's unknown prior scale (recorded in PRIORS.json) from metric points,
     with a third of them hidden behind surfaces (outliers); the fitted (w, q) reach the batch."""

@@ -17,7 +17,7 @@ def main(argv=None) -> int:
     mk.add_argument("out", type=Path, help="output folder (one sub-folder per scene)")
     mk.add_argument("--scenes", type=int, default=1)
     mk.add_argument("--seed", type=int, default=0, help="scene i uses seed + i")
-    mk.add_argument("--preset", default="quick", choices=["tiny", "quick", "bench"])
+    mk.add_argument("--preset", default="quick", choices=["tiny", "quick", "bench", "gpu"])
     mk.add_argument("--views", type=int, help="override the preset's number of views")
     mk.add_argument("--spp", type=int, help="override the preset's samples per pixel")
     mk.add_argument("--sfm", choices=["known", "full", "none"], default=None,

@@ -27,6 +27,7 @@ PRESETS = {  # protocol.md size presets; spp measured so that ground-truth noise
     "tiny": {"width": 48, "height": 27, "views": 8, "spp": 64},
     "quick": {"width": 96, "height": 54, "views": 24, "spp": 1024},
     "bench": {"width": 192, "height": 108, "views": 64, "spp": 4096},
+    "gpu": {"width": 480, "height": 270, "views": 96, "spp": 4096},  # the paper's half resolution; render on a GPU
 }
 
 
