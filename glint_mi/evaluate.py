@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -111,15 +112,19 @@ def save_renders(folder: Path, name: str, b: dict) -> None:
     tmp.replace(folder / f"{name}.exr")
 
 
+PARTIAL = "evaluation_partial"  # where an evaluation writes until its last view is done
+
+
 def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: float | None = None,
              write: bool = True, progress: bool = False, depth_rule: str = "expected", glass_of=None) -> dict:
     """Metrics of ``integ`` (a glint integrator holding trained sets) on ``views``, at the views' resolution; the
     depth each method reports by ``depth_rule`` (``glass_of(view)``: the view's transparency mask, for TSGS's
     first_surface rule).
 
-    With ``write``, each view's renders and ``per_view/<view>.json`` are written as soon as it is done, and
-    ``metrics.json`` after every view (``"views_done"`` says how many), so a Ctrl-C keeps what is finished: the
-    KeyboardInterrupt propagates after the partial metrics are written. FPS counts the views after the first (whose
+    With ``write``, each view's renders, ``per_view/<view>.json`` and the metrics so far (``"views_done"``) are
+    written to ``out_dir/evaluation_partial/`` as soon as it is done and moved into ``out_dir`` when every view is:
+    a Ctrl-C keeps what is finished there and leaves the last complete evaluation as it was (the
+    KeyboardInterrupt propagates). FPS counts the views after the first (whose
     render also compiles the kernels); with one view, that view is rendered a second time."""
     from tqdm.auto import tqdm
 
@@ -141,6 +146,11 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
         return r
 
     bar = tqdm(views, desc="evaluate", unit="view", disable=not progress, dynamic_ncols=True)
+    final = out_dir
+    if out_dir is not None:  # written here as views finish, moved into place when all are: an interruption keeps
+        out_dir = final / PARTIAL  # the last complete evaluation (metrics.json, renders/, per_view/) as it was
+        shutil.rmtree(out_dir, ignore_errors=True)
+        out_dir.mkdir(parents=True)  # its presence says an evaluation is under way or was interrupted
     try:
         for v in bar:
             t0 = time.perf_counter()
@@ -162,9 +172,18 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
     except KeyboardInterrupt:
         bar.close()
         if out_dir is not None:
-            print(f"\nevaluation interrupted: {len(per_view)} of {len(views)} views kept in {out_dir}/metrics.json")
+            print(f"\nevaluation interrupted: {len(per_view)} of {len(views)} views kept in {out_dir}; "
+                  f"{final}/metrics.json is still the last complete evaluation")
         raise
     bar.close()
+    if out_dir is not None:
+        atomic_write_text(out_dir / "metrics.json", json.dumps(result(True), indent=1))
+        for sub in ("renders", "per_view"):
+            shutil.rmtree(final / sub, ignore_errors=True)
+            if (out_dir / sub).exists():
+                (out_dir / sub).rename(final / sub)
+        (out_dir / "metrics.json").replace(final / "metrics.json")
+        shutil.rmtree(out_dir, ignore_errors=True)
     out = result(True)
     out["per_view"] = per_view
     out["renders"] = renders
@@ -219,6 +238,12 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
     return scene.integrator()
 
 
+def _resolution(folder: Path):
+    """The resolution [W, H] of the complete evaluation in ``folder`` (None when there is none)."""
+    p = folder / "metrics.json"
+    return json.loads(p.read_text()).get("resolution") if p.exists() else None
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m glint_mi.evaluate", description=__doc__.split("\n")[0])
     ap.add_argument("run", type=Path)
@@ -245,6 +270,9 @@ def main(argv=None) -> int:
     from .train import eval_options
     try:
         out = args.run if args.max_hits is None else args.run / f"max_hits_{args.max_hits}"
+        v0 = ds.test_views[0] if ds.test_views else None
+        if args.full and v0 is not None and [v0.width, v0.height] != _resolution(out):
+            out = out / f"eval_{v0.width}x{v0.height}"  # beside the run's own evaluation, never mixed with it
         res = evaluate(integ, ds.test_views, out, train_s, progress=not args.no_progress,
                        **eval_options(cfg, ds.root))
     except KeyboardInterrupt:

@@ -101,7 +101,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     for role, what in trainer.report["init"].items():
-        if role in ("interface", "transmission", "reflection"):
+        if role in trainer.sets:  # a set dropped before training was said so, with why, when it was dropped
             print(f"init {role}: {what}")
     if trainer.report.get("priors_derived_from_ground_truth"):
         print("note: the priors were derived from ground truth (priors/PRIORS.json); results are labelled so")
@@ -109,8 +109,10 @@ def main(argv=None) -> int:
         res = trainer.train(progress=not args.no_progress)
     except KeyboardInterrupt:
         return 130
-    for role, d in trainer.report["components"].items():
-        print(f"components: {'kept' if d['kept'] else 'dropped'} {role} ({d['why']})")
+    if trainer.report["components"]:  # each decision was logged with its reason when taken: a summary only
+        print("components: " + ", ".join(f"{'kept' if d['kept'] else 'dropped'} {role}"
+                                         for role, d in trainer.report["components"].items())
+              + f" (why: above, and in {run}/report.json)")
     print(f"trained {res['iterations']} iterations in {res['train_s']:.1f} s -> {run}")
     if not args.no_eval and trainer.ds.test_views:
         from .evaluate import evaluate

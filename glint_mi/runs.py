@@ -86,11 +86,11 @@ def load_run_dataset(run_dir: Path, cfg, full: bool = False, log=None):
 
 
 def finished_metrics(run: Path) -> dict | None:
-    """A run's ``metrics.json`` when its evaluation finished; None when there is none or it was interrupted (the
-    evaluation writes ``metrics.json`` after every view with ``"interrupted": true`` until the last one, so a
-    killed evaluation leaves the mean of the views it reached: it must be evaluated again, not read as done)."""
+    """A run's ``metrics.json`` when its latest evaluation finished; None when there is none or one was interrupted
+    (its ``evaluation_partial/`` folder is left, and metrics.json is an older evaluation's, or an interrupted one's
+    marked ``"interrupted": true`` as evaluations wrote them before): it must be evaluated again, not read as done."""
     path = Path(run) / "metrics.json"
-    if not path.exists():
+    if not path.exists() or (Path(run) / "evaluation_partial").exists():
         return None
     res = json.loads(path.read_text())
     return None if res.get("interrupted") else res

@@ -233,7 +233,7 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
 
         t0 = time.perf_counter()
         try:
-            xyz, rgb, stats, tracks = triangulate_known_poses(files, cams)
+            xyz, rgb, stats, tracks = triangulate_known_poses(files, cams, log=log)
         except Exception as e:  # pycolmap fails in many ways (no features, no matches): one line, then fall back
             why = f"SfM (pycolmap, known poses) failed: {str(e).splitlines()[0] if str(e) else type(e).__name__}"
             log(f"{why}; starting from random points")

@@ -188,3 +188,31 @@ def test_colmap_model_without_images_is_named(tiny, tmp_path):
     (cap / "transforms.json").unlink()
     with pytest.raises(DatasetError, match=r"cameras.txt but no images.txt; a COLMAP model needs both"):
         load_dataset(cap)
+
+
+def test_optimize_says_each_thing_once_and_shows_sfm_progress(tiny, tmp_path):
+    """What optimize prints on a capture without priors: SfM's stages as they finish (before: nothing for 2.7
+    minutes on the fox), no 'init' line for a set dropped before training (before: printed after the drop), and each
+    drop's reason once (before: again at the end)."""
+    import os
+
+    pytest.importorskip("pycolmap")
+    cap = tmp_path / "cap"  # images of 480 x 270 (SIFT wants >= 200 px), no SfM points: optimize triangulates
+    make_scene(cap, seed=4, preset=Preset.named("gpu", views=5, spp=4), sfm="none")
+    shutil.rmtree(cap / "sparse", ignore_errors=True)
+    (tmp_path / "scene.xml").write_text(scene_xml(cap))
+    saved = os.environ.get("GLINT_CACHE")
+    os.environ["GLINT_CACHE"] = str(tmp_path / "cache")  # the subprocess triangulates afresh
+    try:
+        r, errors = _cli("glint_mi.optimize", tmp_path / "scene.xml", "--preset", "tiny", "--iterations", "2",
+                         "--set", "priors=none", "--out", tmp_path / "run", "--no-progress", "--no-eval")
+    finally:
+        os.environ.pop("GLINT_CACHE")
+        if saved is not None:
+            os.environ["GLINT_CACHE"] = saved
+    text = r.stdout + r.stderr
+    assert r.returncode == 0 and not errors, text[-3000:]
+    assert "SfM 1/3: SIFT features of" in text and "SfM 2/3:" in text
+    assert "init transmission" not in text and "init reflection" not in text and "init interface" in text
+    assert text.count("no glass cue: no albedo prior") == 1, text
+    assert "components: dropped transmission, dropped reflection (why: above" in text

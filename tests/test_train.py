@@ -408,6 +408,39 @@ def test_cli_scene_optimize_evaluate(room, tmp_path):
     bad = subprocess.run(env_py + ["glint_mi.evaluate", str(run), "--max-hits", "0"], capture_output=True, text=True,
                          cwd=ROOT, timeout=120)
     assert bad.returncode == 2 and "max_hits" in bad.stderr
+    # an interrupted evaluation keeps the last complete one (metrics.json, per_view/, renders/) as it was and is
+    # not read as done; a complete one moves into place
+    import glint_mi.evaluate as E
+    from glint_mi.runs import finished_metrics
+
+    integ, ds, _, _ = E.load_run(run)
+    kept = {f: (run / f).read_bytes() for f in ("metrics.json", "per_view/view_000.json", "renders/view_000.exr")}
+    real, calls = E.render_view, []
+
+    def stop_second(*a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    E.render_view = stop_second
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            E.evaluate(integ, ds.train_views[:2], run)  # two views: the first is kept, the second interrupted
+    finally:
+        E.render_view = real
+    assert {f: (run / f).read_bytes() for f in kept} == kept
+    assert len(list((run / "evaluation_partial" / "per_view").iterdir())) == 1 and finished_metrics(run) is None
+    E.evaluate(integ, ds.test_views, run)
+    assert not (run / "evaluation_partial").exists() and finished_metrics(run)["views_done"] == len(ds.test_views)
+    # evaluation at another resolution than the run's goes beside it (here the run's is made to look smaller)
+    meta = json.loads((run / "metrics.json").read_text())
+    (run / "metrics.json").write_text(json.dumps({**meta, "resolution": [24, 13]}))
+    full = subprocess.run(env_py + ["glint_mi.evaluate", str(run), "--full", "--no-progress"], capture_output=True,
+                          text=True, cwd=ROOT, timeout=300)
+    w, h = ds.test_views[0].width, ds.test_views[0].height
+    assert full.returncode == 0 and (run / f"eval_{w}x{h}" / "metrics.json").exists(), full.stderr[-2000:]
+    assert json.loads((run / "metrics.json").read_text())["resolution"] == [24, 13]
     # resuming a finished run is refused with the fix named; a missing dataset path too
     again = subprocess.run(env_py + ["glint_mi.optimize", str(scene), "--preset", "tiny", "--out", str(run)],
                            capture_output=True, text=True, cwd=ROOT, timeout=120)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,8 @@ def quiet_colmap(level: int = 2):
         pycolmap.logging.minloglevel = old
 
 
-def _extract_and_match(db: Path, images: Path, names: list[str], cams: list[Camera], max_image_size: int = 1600):
+def _extract_and_match(db: Path, images: Path, names: list[str], cams: list[Camera], max_image_size: int = 1600,
+                       log=lambda m: None):
     """SIFT (CPU) on ``names`` in ``images`` and exhaustive matching into the database ``db``. One camera when all
     views share intrinsics (SINGLE), else one per image; the reconstruction sets the true intrinsics anyway."""
     import pycolmap
@@ -39,10 +41,16 @@ def _extract_and_match(db: Path, images: Path, names: list[str], cams: list[Came
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.max_image_size = max_image_size
     extraction.num_threads = 2
+    t0 = time.perf_counter()
     pycolmap.extract_features(db, images, image_names=names,
                               camera_mode=pycolmap.CameraMode.SINGLE if shared else pycolmap.CameraMode.PER_IMAGE,
                               reader_options=reader, extraction_options=extraction, device=pycolmap.Device.cpu)
+    pairs = len(names) * (len(names) - 1) // 2
+    log(f"SfM 1/3: SIFT features of {len(names)} images in {time.perf_counter() - t0:.0f} s; matching all {pairs} "
+        f"pairs (exhaustive; the longest stage)")
+    t0 = time.perf_counter()
     pycolmap.match_exhaustive(db, device=pycolmap.Device.cpu)
+    log(f"SfM 2/3: {pairs} pairs matched in {time.perf_counter() - t0:.0f} s; triangulating with the known poses")
 
 
 @contextlib.contextmanager
@@ -60,7 +68,7 @@ def _linked(images: list[Path], cams: list[Camera]):
         yield Path(tmp), folder, names
 
 
-def triangulate_known_poses(images: list[Path], cams: list[Camera], max_image_size: int = 1600
+def triangulate_known_poses(images: list[Path], cams: list[Camera], max_image_size: int = 1600, log=lambda m: None
                             ) -> tuple[np.ndarray, np.ndarray, dict, dict]:
     """SIFT + exhaustive matching + triangulation with the known poses ``cams`` (pinhole, at the resolution of
     ``images``, one file per camera, any format Pillow and COLMAP read): ([P,3] xyz, [P,3] uint8 rgb, stats,
@@ -70,7 +78,7 @@ def triangulate_known_poses(images: list[Path], cams: list[Camera], max_image_si
 
     with _linked(images, cams) as (tmp, img_dir, names), quiet_colmap():
         db_path = tmp / "database.db"
-        _extract_and_match(db_path, img_dir, names, cams, max_image_size)
+        _extract_and_match(db_path, img_dir, names, cams, max_image_size, log)
         db = pycolmap.Database.open(db_path)
         by_name = dict(zip(names, cams))
         db_images = db.read_all_images()
