@@ -105,18 +105,12 @@ def bce(t, target: float, weight):
     return dr.sum(w * loss) / dr.maximum(dr.sum(w), 1e-12)
 
 
-def erode(mask: np.ndarray) -> np.ndarray:
-    """3x3 erosion over the last two axes (an image [H,W] or a stack of patches [B,p,p])."""
-    from scipy.ndimage import binary_erosion
-
-    structure = np.ones((1,) * (mask.ndim - 2) + (3, 3), bool)
-    return binary_erosion(mask, structure=structure, border_value=0)
-
-
 def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=None, cos_view=None,
                        low_a: float = 0.05, high_a: float = 0.10, high_b: float = 0.25, alpha_t=None, alpha_i=None,
                        min_alpha: float = 0.5, cue=None, dark_votes: bool = True):
-    """L_trans masks of one image (numpy, no gradient): returns (weight_transparent, weight_opaque), [H, W] float.
+    """L_trans masks of one image (numpy in and out, no gradient): returns (weight_transparent, weight_opaque),
+    [H, W] float (or [B, H, W] for a stack of images). Computed by :func:`block_transparency_masks`, the definition
+    training uses on its patches.
 
     ``depth_t``/``depth_i``: planar depth of the transmission set (straight from the camera) and of the interface
     (0 = invalid). A depth is valid where it is > 0 and, when the accumulated alphas ``alpha_t``/``alpha_i`` are
@@ -135,26 +129,12 @@ def transparency_masks(depth_t, depth_i, tau_delta: float, albedo=None, base=Non
     near-black albedo prior too, and its interface colour is dark wherever what lies behind it is dark.
     Both are eroded 3x3 and weighted by the view angle (1 up to 70 deg, 0 beyond 80 deg, linear between).
     """
-    valid = (depth_t > 0) & (depth_i > 0)
-    if alpha_t is not None and alpha_i is not None:
-        valid &= (alpha_t >= min_alpha) & (alpha_i >= min_alpha)
-    dz = depth_t - depth_i
-    behind, same = valid & (dz > tau_delta), valid & (dz <= tau_delta)
-    if cue is not None:  # the SfM cue replaces the depth gap
-        valid_i = (depth_i > 0) if alpha_i is None else (depth_i > 0) & (alpha_i >= min_alpha)
-        behind, same = valid_i & (cue > 0), cue < 0
-    if albedo is not None and base is not None:
-        low, high, bright = albedo < low_a, albedo > high_a, base > high_b
-        m_t = low & bright & behind
-        votes = (high | (low & ~bright)) if dark_votes else high
-        m_o = (valid & votes) | same  # "same" carries its own validity (depths, or the cue)
-    else:
-        m_t, m_o = behind, same
-    w = np.ones_like(depth_i, dtype=np.float64)
-    if cos_view is not None:
-        ang = np.degrees(np.arccos(np.clip(cos_view, -1, 1)))
-        w = np.clip((80.0 - ang) / 10.0, 0.0, 1.0)
-    return erode(m_t) * w, erode(m_o & ~m_t) * w
+    shape = np.shape(depth_i)
+    dev = lambda x: None if x is None else mi.Float(np.ascontiguousarray(np.broadcast_to(x, shape), np.float32).ravel())
+    w_t, w_o = block_transparency_masks(dev(depth_t), dev(depth_i), shape[-2:], tau_delta, dev(albedo), dev(base),
+                                        dev(cos_view), low_a, high_a, high_b, dev(alpha_t), dev(alpha_i), min_alpha,
+                                        dev(cue), dark_votes)
+    return np.array(w_t, np.float64).reshape(shape), np.array(w_o, np.float64).reshape(shape)
 
 
 # ------------------------------------------------------------ patch terms
@@ -347,7 +327,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
                 parts["treg"] = c.w_treg * transparency_regulariser(t, photo_edges(gt, nb) * 10.0, nb)
         if st["trans"] and c.trans_masks in ("gt", "prior"):  # TSGS: supervised by given glass masks
             g = b.glass > 0.5
-            w_t, w_o = (dr.select(erode_patches(m, p), 1.0, 0.0) for m in (g, ~g))
+            w_t, w_o = (dr.select(erode_blocks(m, p, p), 1.0, 0.0) for m in (g, ~g))
             stats["mask_t"] = mi.Float(dr.count(w_t > 0)) / dr.width(w_t)
             parts["trans"] = c.w_trans * (bce(t, 0.98, w_t) + bce(t, 0.02, w_o))
         total = sum(parts.values())
@@ -415,19 +395,20 @@ def _mean3(c):
     return ((c.x + c.y) + c.z) / 3.0
 
 
-def erode_patches(mask, p: int):
-    """3x3 erosion of a Dr.Jit Bool on p x p patches laid out one after the other (row-major): a pixel stays set where
-    it and its 8 neighbours are, and nowhere on a patch's border (scipy's binary_erosion with border 0, per patch)."""
+def erode_blocks(mask, h: int, w: int):
+    """3x3 erosion of a Dr.Jit Bool on h x w blocks (patches, or whole images) laid out one after the other
+    (row-major): a pixel stays set where it and its 8 neighbours are, and nowhere on a block's border (a binary
+    erosion with border value 0, per block)."""
     i = dr.arange(mi.UInt32, dr.width(mask))
-    local = i % (p * p)
-    y, x = local // p, local % p
-    inner = (y > 0) & (y < p - 1) & (x > 0) & (x < p - 1)
+    local = i % (h * w)
+    y, x = local // w, local % w
+    inner = (y > 0) & (y < h - 1) & (x > 0) & (x < w - 1)
     out = mask & inner
     base = mi.Int32(i)
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
             if dy or dx:
-                out &= dr.gather(mi.Bool, mask, mi.UInt32(dr.select(inner, base + dy * p + dx, base)))
+                out &= dr.gather(mi.Bool, mask, mi.UInt32(dr.select(inner, base + dy * w + dx, base)))
     return out
 
 
@@ -442,12 +423,13 @@ def photo_edges(gt, nb):
     return _mean3(dr.abs(at(right) - c)) + _mean3(dr.abs(at(down) - c))
 
 
-def patch_transparency_masks(depth_t, depth_i, p: int, tau_delta: float, albedo=None, base=None, cos_view=None,
-                             low_a: float = 0.05, high_a: float = 0.10, high_b: float = 0.25, alpha_t=None,
-                             alpha_i=None, min_alpha: float = 0.5, cue=None, dark_votes: bool = True):
-    """:func:`transparency_masks` on the device, for p x p patches laid out one after the other: the same rules on
-    Dr.Jit arrays (per ray), returns (weight_transparent, weight_opaque) as Float. Equal to the numpy definition on
-    the same values: the masks exactly, the view-angle weights to float32 rounding (tests/test_losses.py)."""
+def block_transparency_masks(depth_t, depth_i, block: tuple, tau_delta: float, albedo=None, base=None,
+                             cos_view=None, low_a: float = 0.05, high_a: float = 0.10, high_b: float = 0.25,
+                             alpha_t=None, alpha_i=None, min_alpha: float = 0.5, cue=None, dark_votes: bool = True):
+    """The L_trans masks (the rules of :func:`transparency_masks`) on Dr.Jit arrays, per pixel of h x w ``block``s
+    laid out one after the other (a batch's patches, or whole images), eroded within each block: returns
+    (weight_transparent, weight_opaque) as Float. Tested against a numpy/scipy implementation of the same rules
+    (tests/test_losses.py): the masks exactly, the view-angle weights to float32 rounding."""
     valid = (depth_t > 0) & (depth_i > 0)
     if alpha_t is not None and alpha_i is not None:
         valid &= (alpha_t >= min_alpha) & (alpha_i >= min_alpha)
@@ -467,7 +449,7 @@ def patch_transparency_masks(depth_t, depth_i, p: int, tau_delta: float, albedo=
     if cos_view is not None:
         ang = dr.acos(dr.clip(cos_view, -1.0, 1.0)) * mi.Float(180.0 / np.pi)
         w = dr.clip((80.0 - ang) / 10.0, 0.0, 1.0)
-    one = lambda m: dr.select(erode_patches(m, p), w, 0.0)
+    one = lambda m: dr.select(erode_blocks(m, *block), w, 0.0)
     return one(m_t), one(m_o & ~m_t)
 
 
@@ -486,9 +468,9 @@ def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False)
     d = b.direction
     cos = -((n.x * d.x + n.y * d.y) + n.z * d.z)
     cos = dr.select(dr.squared_norm(n) > 0, cos, 1.0)
-    masks = lambda dark: patch_transparency_masks(dT, dI, b.patch, c.tau_delta * extent, albedo, base, cos,
-                                                  alpha_t=aT, alpha_i=aI, min_alpha=c.trans_min_alpha, cue=b.cue,
-                                                  dark_votes=dark)
+    masks = lambda dark: block_transparency_masks(dT, dI, (b.patch, b.patch), c.tau_delta * extent, albedo, base,
+                                                  cos, alpha_t=aT, alpha_i=aI, min_alpha=c.trans_min_alpha,
+                                                  cue=b.cue, dark_votes=dark)
     w_t, w_o = masks(True)
     allowed = None
     if gate:

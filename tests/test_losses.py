@@ -242,12 +242,36 @@ def test_t_gate_reads_the_opaque_votes_it_is_told(votes):
     assert batch_transparency_masks(cfg, b, out, 1.0)[3] is None
 
 
+def _masks_reference(depth_t, depth_i, tau_delta, albedo=None, base=None, cos_view=None, alpha_t=None,
+                     alpha_i=None, cue=None, min_alpha=0.5, low_a=0.05, high_a=0.10, high_b=0.25):
+    """transparency_masks' rules written again in numpy / scipy (float32 in, per [B, p, p] stack): the reference."""
+    from scipy.ndimage import binary_erosion
+
+    valid = (depth_t > 0) & (depth_i > 0)
+    if alpha_t is not None:
+        valid &= (alpha_t >= min_alpha) & (alpha_i >= min_alpha)
+    dz = depth_t - depth_i
+    behind, same = valid & (dz > tau_delta), valid & (dz <= tau_delta)
+    if cue is not None:
+        valid_i = (depth_i > 0) if alpha_i is None else (depth_i > 0) & (alpha_i >= min_alpha)
+        behind, same = valid_i & (cue > 0), cue < 0
+    if albedo is not None:
+        low, high, bright = albedo < low_a, albedo > high_a, base > high_b
+        m_t, m_o = low & bright & behind, (valid & (high | (low & ~bright))) | same
+    else:
+        m_t, m_o = behind, same
+    w = np.clip((80.0 - np.degrees(np.arccos(np.clip(cos_view, -1, 1)))) / 10.0, 0.0, 1.0)
+    erode = lambda m: binary_erosion(m, structure=np.ones((1, 3, 3), bool), border_value=0)
+    return erode(m_t) * w, erode(m_o & ~m_t) * w
+
+
 @pytest.mark.parametrize("albedo, cue, alphas", [(True, False, True), (False, False, False), (True, True, True)])
 def test_device_patch_masks_equal_the_numpy_definition(albedo, cue, alphas):
-    """patch_transparency_masks (Dr.Jit, per ray, patches one after the other) against transparency_masks (numpy,
-    on the [P, p, p] stack): the same masks pixel for pixel, weights within float32 rounding; random depths, alphas,
-    albedo, base colours, view angles across the 70-80 degree ramp and SfM cues on 64 patches of 8 x 8."""
-    from glint_mi.losses import patch_transparency_masks
+    """block_transparency_masks (Dr.Jit, per ray, 8 x 8 patches one after the other: what training runs) against the
+    rules in numpy / scipy on the [P, p, p] stack: the same masks pixel for pixel, weights within float32 rounding;
+    random depths, alphas, albedo, base colours, view angles across the 70-80 degree ramp and SfM cues on 64
+    patches; and transparency_masks (the image API) gives the same on the stack."""
+    from glint_mi.losses import block_transparency_masks
     rng = np.random.default_rng(4)
     P, p = 64, 8
     shape = (P, 2, 2)  # drawn per 4 x 4 block, so that something survives the erosion
@@ -260,14 +284,16 @@ def test_device_patch_masks_equal_the_numpy_definition(albedo, cue, alphas):
     cos = f32(np.cos(np.radians(rng.uniform(40, 85, shape))))
     cues = f32(rng.choice([-1.0, 0.0, 1.0], shape)) if cue else None
     kw = dict(alpha_t=A_T if alphas else None, alpha_i=A_I if alphas else None, cue=cues)
-    ref_t, ref_o = transparency_masks(D_T, D_I, 0.01, alb, base, cos, **kw)
+    ref_t, ref_o = _masks_reference(D_T, D_I, 0.01, alb, base, cos, **kw)
     dev = lambda x: None if x is None else mi.Float(x.ravel())
-    got_t, got_o = patch_transparency_masks(dev(D_T), dev(D_I), p, 0.01, dev(alb), dev(base), dev(cos),
+    got_t, got_o = block_transparency_masks(dev(D_T), dev(D_I), (p, p), 0.01, dev(alb), dev(base), dev(cos),
                                             **{k: dev(v) for k, v in kw.items()})
-    for got, ref in ((got_t, ref_t), (got_o, ref_o)):
+    image_t, image_o = transparency_masks(D_T, D_I, 0.01, alb, base, cos, **kw)
+    for got, ref, image in ((got_t, ref_t, image_t), (got_o, ref_o, image_o)):
         got, ref = np.array(got), ref.ravel()
         np.testing.assert_array_equal(got > 0, ref > 0)
         np.testing.assert_allclose(got, ref, atol=2e-5)
+        np.testing.assert_array_equal(image.ravel(), got)
         assert (ref > 0).sum() >= 16
     both = np.concatenate([ref_t.ravel(), ref_o.ravel()])
     assert ((both > 0) & (both < 1)).sum() >= 16  # pixels on the view-angle ramp
