@@ -296,10 +296,15 @@ def test_evaluation_keeps_finished_views_on_ctrl_c(tmp_path, monkeypatch):
     monkeypatch.setattr(E, "render_view", fake_render)
     with pytest.raises(KeyboardInterrupt):
         E.evaluate(None, views, tmp_path / "run", write=True)
-    m = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    # what was finished stays in evaluation_partial/ (nothing was complete before: no metrics.json)
+    from glint_mi.runs import finished_metrics
+
+    part = tmp_path / "run" / "evaluation_partial"
+    m = json.loads((part / "metrics.json").read_text())
     assert m["views_done"] == 1 and m["views_total"] == 3 and m["interrupted"] and m["views"] == ["v0"]
-    assert (tmp_path / "run" / "per_view" / "v0.json").exists() and (tmp_path / "run" / "renders" / "v0.exr").exists()
-    assert not (tmp_path / "run" / "per_view" / "v1.json").exists()
+    assert (part / "per_view" / "v0.json").exists() and (part / "renders" / "v0.exr").exists()
+    assert not (part / "per_view" / "v1.json").exists() and not (tmp_path / "run" / "metrics.json").exists()
+    assert finished_metrics(tmp_path / "run") is None
 
 
 @needs_pycolmap

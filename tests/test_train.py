@@ -1114,15 +1114,15 @@ def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, 
     rng = np.random.default_rng(0)
     winner, ours = rng.normal(size=(5, 3)), rng.normal(size=(7, 3))
     stats = {"points3D": 7, "mean_reprojection_error_px": 0.5}
-    monkeypatch.setattr(sfm, "triangulate_known_poses", lambda files, cams: (ours, np.full((7, 3), 9, np.uint8),
-                                                                             stats, {}))
+    monkeypatch.setattr(sfm, "triangulate_known_poses", lambda files, cams, log=None: (
+        ours, np.full((7, 3), 9, np.uint8), stats, {}))
     xyz, _, rep = sfm_points(ds, log=lambda *a: None)  # alone: its own points, cached
     assert rep["source"] == "triangulated" and np.allclose(xyz, ours, atol=1e-5)
     folder = Path(rep["cache"])
     import shutil
     shutil.rmtree(folder)
 
-    def lose(files, cams):  # another run caches its points while this one triangulates
+    def lose(files, cams, log=None):  # another run caches its points while this one triangulates
         write_colmap_text(folder, [dataclasses.replace(Camera.from_view(v), width=400, height=300)
                                    for v in ds.views], (winner, np.full((5, 3), 7, np.uint8)))
         return ours, np.full((7, 3), 9, np.uint8), stats, {}
