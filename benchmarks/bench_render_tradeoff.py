@@ -31,7 +31,7 @@ glint_mi.set_variant()
 
 from glint_mi.evaluate import evaluate, load_model, load_run  # noqa: E402
 from glint_mi.tradeoff import pareto  # noqa: E402
-from glint_mi.train import eval_options  # noqa: E402
+from glint_mi.evaluate import eval_options  # noqa: E402
 
 # (name, max_hits or None for the run's own, components, traversal)
 VARIANTS = [("base (run's budget, all sets)", None, "all", "kbuffer"),

@@ -28,7 +28,7 @@ def count_lists(run: Path, views: int = 2) -> dict:
 
     from glint_mi import native
     from glint_mi.evaluate import evaluate, load_model, load_run
-    from glint_mi.train import eval_options
+    from glint_mi.evaluate import eval_options
 
     march = importlib.import_module("glint_mi_plugins.glint_march").GaussianPasses
     _, ds, cfg, _ = load_run(run)

@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 
 from .data import View
-from .dataset.cameras import MI_TO_COLMAP
+from .conventions import MI_TO_COLMAP
 from .data.priors import load_prior, prior_conventions
 
 

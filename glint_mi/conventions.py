@@ -80,3 +80,31 @@ def linear_to_srgb(x):
 def srgb_to_linear(x):
     x = np.asarray(x, dtype=np.float64)
     return np.where(x <= 0.04045, x / 12.92, np.power((x + 0.055) / 1.055, 2.4))
+
+
+# Camera frames: Mitsuba camera-to-world matrices (x left, y up, z forward). COLMAP / OpenCV: x right, y down,
+# z forward, so R_c2w_colmap = R_c2w_mitsuba @ MI_TO_COLMAP; NeRF / OpenGL: x right, y up, z backward,
+# R_c2w_gl = R_c2w_mitsuba @ MI_TO_GL. The dataset readers (glint_mi.data) and the generator both use them.
+MI_TO_COLMAP = np.diag([-1.0, -1.0, 1.0])
+MI_TO_GL = np.diag([-1.0, 1.0, -1.0])
+
+
+def rotmat_to_qvec(R: np.ndarray) -> np.ndarray:
+    """Rotation matrix -> unit quaternion (w, x, y, z) with w >= 0 (COLMAP's convention)."""
+    # symmetric 4x4 whose dominant eigenvector is the quaternion (x, y, z, w); names follow R's row-major flattening
+    Rxx, Ryx, Rzx, Rxy, Ryy, Rzy, Rxz, Ryz, Rzz = np.asarray(R, float).flat
+    K = np.array([
+        [Rxx - Ryy - Rzz, 0, 0, 0],
+        [Ryx + Rxy, Ryy - Rxx - Rzz, 0, 0],
+        [Rzx + Rxz, Rzy + Ryz, Rzz - Rxx - Ryy, 0],
+        [Ryz - Rzy, Rzx - Rxz, Rxy - Ryx, Rxx + Ryy + Rzz]]) / 3.0
+    vals, vecs = np.linalg.eigh(K)
+    q = vecs[[3, 0, 1, 2], np.argmax(vals)]
+    return -q if q[0] < 0 else q
+
+
+def qvec_to_rotmat(q) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([[1 - 2 * y * y - 2 * z * z, 2 * x * y - 2 * w * z, 2 * x * z + 2 * w * y],
+                     [2 * x * y + 2 * w * z, 1 - 2 * x * x - 2 * z * z, 2 * y * z - 2 * w * x],
+                     [2 * x * z - 2 * w * y, 2 * y * z + 2 * w * x, 1 - 2 * x * x - 2 * y * y]])

@@ -112,6 +112,22 @@ def save_renders(folder: Path, name: str, b: dict) -> None:
     tmp.replace(folder / f"{name}.exr")
 
 
+def eval_options(cfg, root) -> dict:
+    """``evaluate`` keywords for a run's config: its depth rule and, for first_surface, the masks it reads."""
+    if cfg.eval_depth != "first_surface":
+        return {"depth_rule": cfg.eval_depth}
+    from .data.priors import load_prior
+
+    def glass_of(view):
+        m = load_prior(root, view, "glass")
+        if m is None:
+            from .data import DatasetError
+            raise DatasetError(f"{root}: eval_depth = first_surface (TSGS) needs priors/glass/{view.name}.(npy|png|exr)"
+                               f" for the test view '{view.name}' (the transparency mask its depth rule reads).")
+        return m
+    return {"depth_rule": "first_surface", "glass_of": glass_of}
+
+
 PARTIAL = "evaluation_partial"  # where an evaluation writes until its last view is done
 
 
@@ -267,7 +283,6 @@ def main(argv=None) -> int:
     except (RunError, DatasetError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    from .train import eval_options
     try:
         out = args.run if args.max_hits is None else args.run / f"max_hits_{args.max_hits}"
         v0 = ds.test_views[0] if ds.test_views else None

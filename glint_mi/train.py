@@ -29,6 +29,7 @@ from . import losses as L
 from .batch import RayBank
 from .config import LOSS_NAMES, TrainConfig
 from .data import Dataset, DatasetError, load_dataset
+from .evaluate import eval_options
 from .examples import gaussian_scene_dict
 from .gaussians import GaussianSet
 from .render import floats
@@ -37,22 +38,6 @@ from .scene import OptimScene, initial_sets, read_scene
 from .strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
-
-
-def eval_options(cfg, root) -> dict:
-    """``evaluate`` keywords for a run's config: its depth rule and, for first_surface, the masks it reads."""
-    if cfg.eval_depth != "first_surface":
-        return {"depth_rule": cfg.eval_depth}
-    from .data.priors import load_prior
-
-    def glass_of(view):
-        m = load_prior(root, view, "glass")
-        if m is None:
-            from .data import DatasetError
-            raise DatasetError(f"{root}: eval_depth = first_surface (TSGS) needs priors/glass/{view.name}.(npy|png|exr)"
-                               f" for the test view '{view.name}' (the transparency mask its depth rule reads).")
-        return m
-    return {"depth_rule": "first_surface", "glass_of": glass_of}
 
 
 BUDGET_WARN = 0.02  # share of the interface's rays that may spend the whole hit budget before the run warns

@@ -100,7 +100,8 @@ def test_evaluation_reports_each_methods_depth(tmp_path):
     from glint_mi.data import DatasetError
     from glint_mi.evaluate import evaluate
     from glint_mi.scene import read_scene
-    from glint_mi.train import Trainer, eval_options
+    from glint_mi.evaluate import eval_options
+    from glint_mi.train import Trainer
 
     spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
     tr = Trainer(tmp_path / "run", TrainConfig.for_preset("tiny", iterations=60), scene=spec, log=lambda *a, **k: None)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dataset.cameras import MI_TO_GL
+from ..conventions import MI_TO_GL
 from .errors import DatasetError
 from .frames import Frame
 from .images import find_image, image_size

@@ -12,8 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-MI_TO_COLMAP = np.diag([-1.0, -1.0, 1.0])
-MI_TO_GL = np.diag([-1.0, 1.0, -1.0])
+from ..conventions import MI_TO_COLMAP, MI_TO_GL, qvec_to_rotmat, rotmat_to_qvec  # noqa: F401  (the readers' too)
 
 
 @dataclasses.dataclass
@@ -103,27 +102,6 @@ def trajectory(room, n_views: int, width: int, height: int, seed: int, fov_deg: 
 
 
 # ------------------------------------------------------------------ export
-def rotmat_to_qvec(R: np.ndarray) -> np.ndarray:
-    """Rotation matrix -> unit quaternion (w, x, y, z) with w >= 0 (COLMAP's convention)."""
-    # symmetric 4x4 whose dominant eigenvector is the quaternion (x, y, z, w); names follow R's row-major flattening
-    Rxx, Ryx, Rzx, Rxy, Ryy, Rzy, Rxz, Ryz, Rzz = np.asarray(R, float).flat
-    K = np.array([
-        [Rxx - Ryy - Rzz, 0, 0, 0],
-        [Ryx + Rxy, Ryy - Rxx - Rzz, 0, 0],
-        [Rzx + Rxz, Rzy + Ryz, Rzz - Rxx - Ryy, 0],
-        [Ryz - Rzy, Rzx - Rxz, Rxy - Ryx, Rxx + Ryy + Rzz]]) / 3.0
-    vals, vecs = np.linalg.eigh(K)
-    q = vecs[[3, 0, 1, 2], np.argmax(vals)]
-    return -q if q[0] < 0 else q
-
-
-def qvec_to_rotmat(q) -> np.ndarray:
-    w, x, y, z = q
-    return np.array([[1 - 2 * y * y - 2 * z * z, 2 * x * y - 2 * w * z, 2 * x * z + 2 * w * y],
-                     [2 * x * y + 2 * w * z, 1 - 2 * x * x - 2 * z * z, 2 * y * z - 2 * w * x],
-                     [2 * x * z - 2 * w * y, 2 * y * z + 2 * w * x, 1 - 2 * x * x - 2 * y * y]])
-
-
 def colmap_pose(cam: Camera):
     """World-to-camera (qvec w,x,y,z; tvec) in COLMAP axes for a Mitsuba camera."""
     R_c2w = cam.c2w[:3, :3] @ MI_TO_COLMAP
