@@ -234,23 +234,21 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
     from .conventions import ROLES
     from .examples import gaussian_scene_dict
     from .gaussians import GaussianSet
+    from .model import integrator_props, shape_props
 
     glint_mi.set_variant()
     import mitsuba as mi
 
     model = Path(run) / "model"
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
-    budget = cfg.max_hits if max_hits is None else max_hits
-    env = {}
-    if cfg.blend == "refgs":  # Ref-GS's directional grid, written beside the sets
-        if not (model / "env.npy").exists():
-            from .runs import RunError
+    if cfg.blend == "refgs" and not (model / "env.npy").exists():  # Ref-GS's directional grid, beside the sets
+        from .runs import RunError
 
-            raise RunError(f"{model / 'env.npy'}: a refgs model needs its directional grid; the run did not "
-                           f"finish saving its model - resume it with `python -m glint_mi.optimize --resume {run}`.")
-        env = {"env_levels": cfg.env_levels, "env_file": str((model / "env.npy").resolve())}
-    scene = mi.load_dict(gaussian_scene_dict(sets, cfg.kernel, cfg.opacity_shells, components=components,
-                                             max_order=cfg.max_order, max_hits=budget, blend=cfg.blend, **env))
+        raise RunError(f"{model / 'env.npy'}: a refgs model needs its directional grid; the run did not "
+                       f"finish saving its model - resume it with `python -m glint_mi.optimize --resume {run}`.")
+    props = integrator_props(cfg, components=components, max_hits=max_hits,
+                             env_file=str((model / "env.npy").resolve()))
+    scene = mi.load_dict(gaussian_scene_dict(sets, **shape_props(cfg), **props))
     return scene.integrator()
 
 

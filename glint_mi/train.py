@@ -32,6 +32,7 @@ from .data import Dataset, DatasetError, load_dataset
 from .evaluate import eval_options
 from .examples import gaussian_scene_dict
 from .gaussians import GaussianSet
+from .model import TRAINING_AOVS, integrator_props, model_xml, shape_props
 from .render import floats
 from .runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset
 from .scene import OptimScene, initial_sets, read_scene
@@ -212,12 +213,8 @@ class Trainer:
 
         # the integrator traces every enabled set for every ray ("all"): its per-ray "auto" skipping folds a skipped
         # weight into k_d, which zeroes the gradient that would let beta (or tau) grow from its initial value
-        props = {"components": "all", "max_order": self.cfg.max_order,
-                 "max_hits": self.cfg.max_hits, "blend": self.cfg.blend, "traversal": self.cfg.traversal,
-                 "aovs": "depth,normal,transparency,interface,alpha,weights"}
-        if self.cfg.blend == "refgs":
-            props["env_levels"] = self.cfg.env_levels
-        self.scene = mi.load_dict(gaussian_scene_dict(self.sets, self.cfg.kernel, self.cfg.opacity_shells, **props))
+        props = integrator_props(self.cfg, components="all", aovs=TRAINING_AOVS)
+        self.scene = mi.load_dict(gaussian_scene_dict(self.sets, **shape_props(self.cfg), **props))
         self.integ = self.scene.integrator()
         self.params = mi.traverse(self.integ)
         self.dev = None
@@ -727,29 +724,15 @@ class Trainer:
         from .dataset.cameras import Camera
         from .dataset.generate import sensor_xml
 
-        cam = Camera.from_view(v)
-        shapes = "\n".join(
-            f'        <shape type="glint_gaussians" name="{r}">\n'
-            f'            <string name="filename" value="{r}.ply"/>\n'
-            f'            <string name="kernel" value="{self.cfg.kernel}"/>\n'
-            f'            <boolean name="opacity_shells" value="{str(self.cfg.opacity_shells).lower()}"/>\n'
-            f'        </shape>' for r in sets)
-        env = ""
         if self.env is not None:  # refgs: the directional grid, [h, w, 3] log-radiance
             buf = io.BytesIO()
             np.save(buf, self.integ.env.numpy())  # what _push_env last sent: self.env as [h, w, 3]
             atomic_write_bytes(model / "env.npy", buf.getvalue())
-            env = (f'        <integer name="env_levels" value="{self.cfg.env_levels}"/>\n'
-                   f'        <string name="env_file" value="env.npy"/>\n')
-        xml = (f'<scene version="3.0.0">\n    <!-- trained by glint_mi ({self.it} iterations); render with '
-               f'mitsuba or python -m glint_mi.evaluate -->\n'
-               f'    <integrator type="glint" id="integrator">\n'
-               f'        <string name="dataset" value="{self.ds.root.resolve()}"/>\n'
-               f'        <string name="components" value="all"/>\n'
-               f'        <string name="blend" value="{self.cfg.blend}"/>\n'
-               f'        <integer name="max_order" value="{self.cfg.max_order}"/>\n'
-               f'        <integer name="max_hits" value="{self.cfg.max_hits}"/>\n{env}{shapes}\n    </integrator>\n'
-               f'{sensor_xml(cam, 1)}</scene>\n')
+        props = {"dataset": str(self.ds.root.resolve()),
+                 **integrator_props(self.cfg, components="all", env_file="env.npy")}
+        xml = model_xml(props, list(sets), shape_props(self.cfg), sensor_xml(Camera.from_view(v), 1),
+                        f"trained by glint_mi ({self.it} iterations); render with mitsuba or python -m "
+                        f"glint_mi.evaluate")
         atomic_write_text(model / "scene.xml", xml)
         self._write_log()
         if self.history:

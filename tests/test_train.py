@@ -1237,3 +1237,24 @@ def test_batches_over_the_list_cap_retrace_with_the_same_gradients(room, tmp_pat
     np.testing.assert_allclose(b.sh, a.sh, atol=1e-4)
     with pytest.raises(ConfigError, match="stored_hits_mb"):
         tiny_cfg(stored_hits_mb=-1).validate()
+
+
+def test_one_road_from_config_to_integrator(room, tmp_path):
+    """The trainer's integrator, evaluate.load_model's and the saved model/scene.xml loaded by Mitsuba are configured
+    alike from the run's config (glint_mi.model): hit budget, order, blend, traversal, kernel and shells; before, the
+    saved scene and load_model dropped the traversal."""
+    import glint_mi
+    from glint_mi.evaluate import load_model
+    from glint_mi_plugins.glint_gaussians import info
+
+    cfg = tiny_cfg(iterations=2, patches=4, max_hits=48, traversal="bvh", opacity_shells=False, kernel="ellipsoid",
+                   components="interface")
+    tr = Trainer(tmp_path / "r", cfg, scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    tr.train(progress=False)
+    saved = glint_mi.load_file(tmp_path / "r" / "model" / "scene.xml").integrator()
+    for integ in (tr.integ, load_model(tmp_path / "r", tr.cfg), saved):
+        assert (integ.max_hits, integ.max_order, integ.blend, integ.kbuffer) == (48, 1, "fresnel", False)
+        assert list(integ.sets) == ["interface"]
+        meta = info(integ.sets["interface"].shape)
+        assert (meta.kernel, meta.opacity_shells) == ("ellipsoid", False)
+    assert 'name="traversal" value="bvh"' in (tmp_path / "r" / "model" / "scene.xml").read_text()
