@@ -192,7 +192,7 @@ def timed(fn, reps: int = 3) -> float:
 def traversal(tr: Trainer) -> list[dict]:
     """Each forward pass of one batch, as it runs and as a traversal only with the same hits per ray."""
     integ, c, st = tr.integ, tr.cfg, tr.stage()
-    integ.enabled = set(st["traced"])
+    integ.select(st["traced"])
     b = tr.bank.sample(np.random.default_rng(123), c.patches, c.patch)
     o, d = mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction))
     active = mi.Bool(True)

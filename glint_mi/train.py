@@ -319,21 +319,23 @@ class Trainer:
 
         bank = self.bank
         ray = mi.Ray3f(mi.Point3f(*floats(bank.origins[vid])), mi.Vector3f(*floats(bank.dirs[flat])))
-        enabled, self.integ.enabled = self.integ.enabled, {"interface"}
-        out = self.integ.trace(ray, mi.Bool(True), forward=mi.Vector3f(*floats(bank.axes[vid, :, 2])))
-        self.integ.enabled = enabled
-        dr.eval(out["depth"], out["alpha"])
+        with self.integ.tracing({"interface"}):
+            out = self.integ.trace(ray, mi.Bool(True), forward=mi.Vector3f(*floats(bank.axes[vid, :, 2])))
+            dr.eval(out["depth"], out["alpha"])
         return np.array(out["depth"], np.float64), np.array(out["alpha"], np.float64)
 
     # --------------------------------------------------------- one step
     def step(self, read: bool = True) -> dict:
         """One training step. Returns the loss terms and the batch's statistics: floats, or with ``read=False``
         width-1 Dr.Jit arrays that nothing reads back until :meth:`settle` (the training loop: one read per log)."""
+        with self.integ.tracing(self.stage()["traced"]):  # the stage's sets, for the forward and its replay
+            return self._step(read)
+
+    def _step(self, read: bool) -> dict:
         import drjit as dr
         import mitsuba as mi
 
         c, st, phase = self.cfg, self.stage(), self.phase
-        self.integ.enabled = set(st["traced"])
         with phase("sample"):  # the draws in numpy (3 numbers a patch), the rays and targets gathered on the device
             b = self.bank.sample_device(self.rng, c.patches, c.patch)
             ray, fwd = mi.Ray3f(b.origin, b.direction), b.axes[2]
@@ -626,7 +628,7 @@ class Trainer:
 
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
-        self.integ.enabled = set(self.active_sets())
+        self.integ.select(self.active_sets())
         return self.integ
 
     # ------------------------------------------------------ persistence

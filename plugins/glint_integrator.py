@@ -108,6 +108,8 @@ differentiated.
 """
 from __future__ import annotations
 
+import contextlib
+
 import drjit as dr
 import mitsuba as mi
 
@@ -285,6 +287,25 @@ class GlintIntegrator(GaussianPasses):
     def active_set(self, role):
         s = self.sets.get(role)
         return s if (s is not None and not s.empty and role in self.enabled) else None
+
+    def select(self, roles) -> None:
+        """Trace the sets ``roles`` from now on (of those the integrator holds; e.g. the sets a trained model kept)."""
+        roles = set(roles)
+        bad = roles - set(cv.ROLES)
+        if bad:
+            raise ValueError(f"glint: unknown set(s) {sorted(bad)}; the sets are {', '.join(cv.ROLES)}.")
+        self.enabled = roles
+
+    @contextlib.contextmanager
+    def tracing(self, roles):
+        """Trace only the sets ``roles`` inside the block (a training stage's sets, the interface alone for a depth
+        render); the sets traced before come back after it, also when the block raises."""
+        before = self.enabled
+        self.select(roles)
+        try:
+            yield self
+        finally:
+            self.enabled = before
 
     def lists_fit(self, n_rays: int, budget_mb: float | None = None) -> bool:
         """Whether the stored hit lists of ``n_rays`` rays (n_rays x max_hits x 4 bytes for each of up to five passes)

@@ -487,3 +487,26 @@ def test_t_raise_drops_only_upward_pushes_on_t(rng):
     # no ray may raise t: every Gaussian's t gradient is >= 0 (descent can only lower t)
     assert (grad(-np.abs(a_t), np.zeros(n, bool)) == 0).all()
     assert (grad(-np.abs(a_t)) < 0).any()
+
+
+def test_tracing_selects_sets_for_a_block_only():
+    """integ.tracing(roles): only those sets inside the block, the former ones after it (also after an error);
+    select() refuses a set name that does not exist. A training step traces its stage's sets and leaves the
+    integrator as it found it."""
+    import pytest
+
+    from glint_mi.examples import gaussian_scene_dict
+
+    rng = np.random.default_rng(0)
+    sets = {r: random_set(rng, 8) for r in ("interface", "transmission", "reflection")}
+    integ = mi.load_dict(gaussian_scene_dict(sets, components="all")).integrator()
+    assert integ.enabled == {"interface", "transmission", "reflection"}
+    with integ.tracing({"interface"}):
+        assert integ.active_set("reflection") is None and integ.active_set("interface") is not None
+    assert integ.active_set("reflection") is not None
+    with pytest.raises(RuntimeError):
+        with integ.tracing({"interface", "transmission"}):
+            raise RuntimeError("inside")
+    assert integ.enabled == {"interface", "transmission", "reflection"}
+    with pytest.raises(ValueError, match="unknown set"):
+        integ.select({"glass"})

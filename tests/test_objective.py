@@ -89,7 +89,7 @@ def _traced_batch(tr, st, need=frozenset()):
     ``need``): (batch, rays, camera forward axes, the integrator's buffers), the inputs of
     ``losses.batch_objective``."""
     c = tr.cfg
-    tr.integ.enabled = set(st["traced"])
+    tr.integ.select(st["traced"])
     b = tr.bank.sample(np.random.default_rng(0), c.patches, c.patch)
     ray = mi.Ray3f(mi.Point3f(*[mi.Float(b.origin[:, k]) for k in range(3)]),
                    mi.Vector3f(*[mi.Float(b.direction[:, k]) for k in range(3)]))

@@ -1258,3 +1258,22 @@ def test_one_road_from_config_to_integrator(room, tmp_path):
         meta = info(integ.sets["interface"].shape)
         assert (meta.kernel, meta.opacity_shells) == ("ellipsoid", False)
     assert 'name="traversal" value="bvh"' in (tmp_path / "r" / "model" / "scene.xml").read_text()
+
+
+def test_a_step_traces_its_stage_and_leaves_the_integrator_as_found(room, tmp_path):
+    """In the warm-up stage a step traces the interface alone (integ.tracing) and the integrator's sets are the
+    same after the step as before it (the trainer used to set integ.enabled and leave it)."""
+    tr = Trainer(tmp_path / "w", tiny_cfg(iterations=40, patches=4), scene=read_scene(room.parent / "scene.xml"),
+                 log=lambda *a: None)
+    assert tr.stage()["traced"] == {"interface"}
+    before = set(tr.integ.enabled)
+    seen = []
+    real = tr.integ.trace
+
+    def spy(*a, **k):
+        seen.append(set(tr.integ.enabled))
+        return real(*a, **k)
+
+    tr.integ.trace = spy
+    tr.step()
+    assert seen and all(s == {"interface"} for s in seen) and tr.integ.enabled == before != {"interface"}
