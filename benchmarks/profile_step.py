@@ -103,7 +103,7 @@ def _rebuild_every(n):
 
 
 def _adam(step):
-    from glint_mi.strategy import Adam
+    from glint_mi.optim import Adam
     Adam.step = step
 
 
@@ -136,7 +136,7 @@ def _device_update(tr, on):
         tr.dev = None
 
 
-from glint_mi.strategy import Adam as _Adam  # noqa: E402
+from glint_mi.optim import Adam as _Adam  # noqa: E402
 
 SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda tr: _rebuild_every(0),
              lambda tr: _rebuild_every(100)),

@@ -3,11 +3,11 @@ the gradient statistics densification reads, a selective Adam and the packing of
 layout, all on Dr.Jit arrays of the variant in force (LLVM or CUDA), so that between two structure changes nothing of
 a set goes to the host and back.
 
-The host (numpy) :class:`glint_mi.gaussians.GaussianSet`, :class:`glint_mi.strategy.Adam` and
+The host (numpy) :class:`glint_mi.gaussians.GaussianSet`, :class:`glint_mi.optim.Adam` and
 :class:`glint_mi.strategy.Strategy` stay the record: densification, resets, checkpoints and saving read them after
 :meth:`DeviceUpdate.pull`, and a set whose rows changed on the host is sent back with :meth:`DeviceUpdate.load`.
 
-The arithmetic is :func:`glint_mi.strategy.raw_gradients` followed by :meth:`glint_mi.strategy.Adam.step`, per
+The arithmetic is :func:`glint_mi.optim.raw_gradients` followed by :meth:`glint_mi.optim.Adam.step`, per
 element in float32 (the host reference computes the chain rule and the moments' update in float64 and rounds the
 moments and values to float32); the bias corrections are float64 on both. Tested equal to the reference within
 float32 rounding (tests/test_device_step.py); which one a run uses is the config's ``update`` (device | host).
@@ -23,9 +23,8 @@ import mitsuba as mi
 import numpy as np
 
 from .gaussians import MIN_SHELL_FACTOR, GaussianSet
-from .strategy import RAW_FIELDS
+from .optim import RAW_FIELDS
 
-F64 = mi.Float64
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 
 
@@ -106,9 +105,10 @@ class DeviceUpdate:
 
     # ------------------------------------------------------------------- the step
     def gradients(self, role: str, grads: dict, sh_degree, zero: set[str]) -> dict:
-        """:func:`glint_mi.strategy.raw_gradients` on the device (float64, the reference's operations in its order),
+        """:func:`glint_mi.optim.raw_gradients` on the device (float64, the reference's operations in its order),
         then the SH bands above ``sh_degree`` (an opaque UInt32) and the ``zero`` fields set to 0, and non-finite
         entries zeroed (counted in the set's ``bad``). Float64 arrays, one per raw field."""
+        F64 = mi.Float64
         s = self.sets[role]
         n = s.n
         data = F64(grads["data"])
@@ -150,6 +150,7 @@ class DeviceUpdate:
     def rows(self, role: str, g: dict):
         """Per row: (seen, touched, position gradient): a gradient on the opacity or the position (what the
         densification statistic counts), and also on the DC colour (the rows selective Adam steps)."""
+        F64 = mi.Float64
         s = self.sets[role]
         r = _index(s.n)
         means = [dr.gather(F64, g["means"], r * 3 + k) for k in range(3)]
@@ -172,6 +173,7 @@ class DeviceUpdate:
         """Adam on the rows ``touched`` (all rows when the Adam is dense); ``lr_scale`` values may be opaque
         Float64 scalars. Adam.step's arithmetic: the moments updated in float64 (their decay in float32) and stored
         in float32, the step in float64, rounded before it is subtracted in float32."""
+        F64 = mi.Float64
         a, s = self.adam, self.sets[role]
         if not a.selective:
             touched = dr.full(mi.Bool, True, s.n)
@@ -207,6 +209,7 @@ class DeviceUpdate:
     def pack(self, role: str, min_shell_ratio: float, opacity_shells: bool, extent: float) -> dict:
         """:meth:`glint_mi.gaussians.GaussianSet.to_mitsuba` on the device (float64, rounded to float32 at the end,
         as the reference): the ``glint_gaussians`` parameters (flat float32 Dr.Jit arrays) of the set's values."""
+        F64 = mi.Float64
         s = self.sets[role]
         n = s.n
         sig = lambda x: 1.0 / (1.0 + dr.exp(-F64(x)))

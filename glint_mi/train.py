@@ -2,7 +2,7 @@
 
 One iteration: draw ``patches`` p x p patches across training views -> ``integrator.trace`` (primal) -> losses on
 Dr.Jit leaves of the traced buffers -> their adjoints -> ``integrator.backward`` (path replay, constant memory) ->
-renderer-space gradients -> chain rule to raw parameters (:func:`glint_mi.strategy.raw_gradients`) -> Adam (numpy).
+renderer-space gradients -> chain rule to raw parameters (:func:`glint_mi.optim.raw_gradients`) -> Adam (numpy).
 Structural changes (densify, prune, resets, dropping a set) go through :class:`glint_mi.strategy.Strategy`.
 
 A run folder holds ``config.json``, ``checkpoint.npz`` (atomic; everything to continue exactly, RNG included),
@@ -36,7 +36,8 @@ from .model import TRAINING_AOVS, integrator_props, model_xml, shape_props
 from .render import floats
 from .runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset
 from .scene import OptimScene, initial_sets, read_scene
-from .strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
+from .optim import RAW_FIELDS, Adam, raw_gradients
+from .strategy import Strategy
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 

@@ -19,7 +19,8 @@ from glint_mi.dataset.generate import Preset, make_scene
 from glint_mi.gaussians import GaussianSet
 from glint_mi.render import camera_rays
 from glint_mi.scene import SceneError, read_scene, scene_xml
-from glint_mi.strategy import RAW_FIELDS, Adam, Strategy, raw_gradients
+from glint_mi.optim import RAW_FIELDS, Adam, raw_gradients
+from glint_mi.strategy import Strategy
 from glint_mi.train import Trainer
 
 from conftest import BITWISE, KBUFFER
