@@ -1,5 +1,6 @@
-"""Training configuration: one flat dataclass, presets sized for 2 CPU cores, and the schedule variants (the
-paper's two and glint_mi's).
+"""Training configuration: one flat dataclass, presets sized for 2 CPU cores (and ``gpu``, the paper's budget), and
+the schedule variants (the paper's two and glint_mi's). A field's comment says what it is; why a default is what it
+is, with the measurement behind it, is in docs/decisions.md.
 
 Iteration-dependent settings are *fractions of the run* (the paper's 60k-iteration schedule, rescaled): e.g. the
 transparency bootstrapping starts at 5k/60k = 0.083 of the run. ``variant`` picks the schedule: the supplement's,
@@ -51,18 +52,14 @@ class TrainConfig:
     components: str = "auto"             # auto | all | comma list of interface,transmission,reflection
     max_order: int = 1
     max_hits: int = 256                  # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget"); a
-    #                                      ray that spends it is cut short and the model learns the cut (log.csv
-    #                                      budget_full; 64 cost 1.7-2 dB on the unseen rooms, docs/performance.md)
+    #                                      ray that spends it is cut short (its share: log.csv budget_full)
     opacity_shells: bool = True          # each Gaussian's BVH shell ends where its alpha reaches the 1/255 cut-off
     #                                      (glint_gaussians' opacity_shells); false: 3.33 sigma for every opacity
     blend: str = "fresnel"               # fresnel (GLINT) | envgs: (1 - beta) c_I + beta c_R | alpha: plain compositing
     #                                      | refgs: Ref-GS's deferred srgb(c_I + s(reflect(d, N), beta as roughness))
     env_levels: int = 7                  # refgs: mip levels of its directional grid, 2^L x 2^(L+1) texels at level 0
     lr_env: float = 0.002                # refgs: the grid's learning rate (Ref-GS's encoding_lr)
-    env_init: float = 0.001              # refgs: the specular radiance s the grid starts at, everywhere. Tuning
-    #                                      room 7301 (bench, seed 0): 30.34 dB against 23.12 for 0.05 - a bright
-    #                                      start washes every dark pixel out, and albedo pushed below 0 stops at
-    #                                      its clamp (docs/decisions.md)
+    env_init: float = 0.001              # refgs: the specular radiance s the grid starts at, everywhere
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
     trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | prior (a segmentation model's masks in
     #                                      priors/glass/: the TSGS baseline) | gt (ground-truth glass masks, labelled)
@@ -83,11 +80,10 @@ class TrainConfig:
     lr_transparency: float = 0.05
     adam_eps: float = 1e-15
     adam: str = "selective"              # selective (touched rows only, per-row bias correction) | dense
-    update: str = "device"               # device: chain rule, Adam and packing on Dr.Jit arrays (float32; nothing goes
-    #                                      to the host between structure changes) | host: numpy / native C++ (float64
-    #                                      chain rule and moment updates; the reference the device one is tested on)
-    traversal: str = "auto"              # kbuffer (native, one Embree traversal per 64 hits) | bvh (Mitsuba's
-    #                                      queries, one per hit) | auto: kbuffer where glint_mi.native builds
+    update: str = "device"               # device: chain rule, Adam and packing on Dr.Jit arrays (nothing goes to the
+    #                                      host between structure steps) | host: numpy / native C++ (the reference)
+    traversal: str = "auto"              # kbuffer (glint_mi.native's Embree k-buffer, LLVM only) | bvh (Mitsuba's
+    #                                      queries, one per hit: the CUDA path) | auto: kbuffer where it builds
     stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
     #                                      the BVH queries (exact: same hits and arithmetic; rays x max_hits x 4 B
     #                                      per pass); false = re-trace (benchmarks/profile_step.py compares)
@@ -110,16 +106,13 @@ class TrainConfig:
     depth_refit: float = 0.02
     w_normal: float = 0.3
     prior_decay: float = 1.0             # from this fraction of the run the depth and normal prior weights fall
-    #                                      linearly to 0 at its end; 1.0 = constant weights (the paper). 0.35 on
-    #                                      tuning room 7301: +0.04 dB, normals 1.1 deg worse (docs/decisions.md)
+    #                                      linearly to 0 at its end; 1.0 = constant weights (the paper)
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
     #                                      sees through the glass in some views, the pane in others; the choice per
     #                                      ray is detached, losses.nearer_layer), elsewhere the interface; interface
-    #                                      = the paper's. Tuning room 7301 (two seeds against the base): glass
-    #                                      normals 37 against 45 deg, normal MAE 11.2 against 11.9-12.2, PSNR within
-    #                                      the seed spread (docs/decisions.md)
+    #                                      = the paper's
     w_consistency: float = 0.1
     consistency_depth: str = "expected"  # the depth whose normals the consistency term compares: expected (GLINT) or
     #                                      median (2DGS's depth_ratio 1: the distance where T falls to 0.5)
@@ -129,20 +122,14 @@ class TrainConfig:
     w_treg: float = 0.01
     w_plausibility: float = 0.05
     plausibility_mask: str = "opaque"    # where G_trans is pulled to the interface: opaque = L_trans's opaque mask
-    #                                      (the paper); interface = 1 - t where the interface is a surface (measured
-    #                                      on a room without albedo prior: it also pulls G_trans off the glass, the
-    #                                      transparent mask shrinks to 0.3 % and components: auto drops G_trans)
+    #                                      (the paper); interface = 1 - t where the interface is a surface
     trans_cue: str = "auto"              # L_trans's masks: auto = glint_mi's 3D cue from the SfM tracks
     #                                      (RayBank.see_through_cue) in place of the paper's depth gap D_T - D_I:
     #                                      transparent only near features seen behind the SfM-aligned depth prior,
     #                                      opaque near features on it (with an albedo prior its votes stay); none =
     #                                      the paper's masks. Without an albedo prior (and, for auto, without the cue)
     #                                      components: auto drops the transmission set (the depth gap of two sets
-    #                                      fitting one surface is no glass cue: on the fox it called 92 % of the
-    #                                      wallpaper glass). Tuning room 7301 (realistic priors, 256 hits, two seeds,
-    #                                      components: all): none finds more glass (t IoU 0.38 against 0.29), but its
-    #                                      masks keep the transmission set of the glass-free twin under components:
-    #                                      auto (0.16 % of pixels, threshold 0.1 %; auto: 0.03 %): docs/decisions.md
+    #                                      fitting one surface is no glass cue)
     t_raise: str = "masks"               # where the objective may raise t: masks = from the end of densification,
     #                                      not where L_trans's opaque mask votes (which votes: t_gate_votes;
     #                                      glint_mi's: off glass a blend of c_I and c_T, two fits of the same
@@ -150,9 +137,7 @@ class TrainConfig:
     #                                      made t a veil over the room); free = wherever the gradient says (paper)
     t_gate_votes: str = "geometric"      # which opaque votes close the t_raise: masks gate: geometric = L_trans's
     #                                      opaque mask without its dark-surface vote (LowA & ~HighB), which glass
-    #                                      with a dark background also casts (tuning room 7301, bench, 5.3 epochs: t
-    #                                      IoU 0.44 -> 0.56, t on glass 0.44 -> 0.56, t off glass 0.030 -> 0.053);
-    #                                      all = the whole opaque mask
+    #                                      with a dark background also casts; all = the whole opaque mask
     cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
@@ -192,17 +177,14 @@ class TrainConfig:
     #                                      what a one-set baseline gets)
     # components: auto
     auto_trans_min: float = 0.001        # keep the transmission set if L_trans's transparent mask covers this
-    #                                      share of the sampled pixels (mean since L_trans started). Tuning room
-    #                                      7301 at 256 hits, realistic priors: 0.41 % with its glass case, 0.03 %
-    #                                      for the same room rendered without the glass (docs/decisions.md)
+    #                                      share of the sampled pixels (mean since L_trans started)
     auto_contrib_min: float = 0.005      # drop the reflection set if its share of the image energy is below this
     #                                      (the transmission set: its mask alone, auto_trans_min)
     no_glass: str = "3dgs"               # when components: auto drops both secondary sets before training (no glass
     #                                      cue), the interface alone is a radiance field: 3dgs = train it exactly as
     #                                      the 3dgs method does (3D Gaussians, its loss weights 0.8 / 0.2, no
     #                                      depth-normal consistency, no SfM depth term); 3dgs+sfm = the same with
-    #                                      glint_mi's SfM depth term (better depth - AbsRel 0.124 against 0.153 on
-    #                                      the unseen rooms - for 0.22 dB of PSNR); glint = GLINT's surfels and weights
+    #                                      glint_mi's SfM depth term; glint = GLINT's surfels and weights
     # run
     checkpoint_every: int = 200
     eval_every: int = 0                  # > 0: evaluate the test views every this many iterations and at the end
@@ -399,10 +381,8 @@ PRESETS = {
 }
 SUPPLEMENT = dict(warmup=5 / 60, transmission_from=5 / 60, reflection_from=5 / 60, refine_from=40 / 60, tau_n=0.3)
 VARIANTS = {
-    # glint_mi (default): the supplement's warm-up and tau_n, but no refine stage. Freezing the interface for the last
-    # third is the supplement's 40k-60k of a run whose interface has converged by then; at CPU budgets it stops the
-    # interface two thirds of the way: tuning room 7301 (bench, 256 hits, all sets) 28.54 -> 31.15 dB without it,
-    # normal MAE 12.4 -> 12.1, AbsRel 0.044 -> 0.040, t IoU 0.24 -> 0.29 (docs/decisions.md)
+    # glint_mi (default): the supplement's warm-up and tau_n, but no refine stage (the supplement freezes the
+    # interface for the last third, 40k-60k of a run whose interface has converged by then)
     "glint_mi": {**SUPPLEMENT, "refine_from": 1.0},
     "supplement": SUPPLEMENT,
     "release": dict(warmup=1 / 60, transmission_from=1 / 60, reflection_from=3 / 60, refine_from=1.0, tau_n=0.5),

@@ -30,10 +30,17 @@ METHOD_2DGS = dict(**NOT_OURS, components="interface", **ALPHA, w_consistency=0.
 
 @dataclasses.dataclass(frozen=True)
 class Method:
+    """A method: TrainConfig overrides (a partial config, checked when the method is defined: every key a field,
+    every value of its field's type and range), what it is, and what differs from its paper."""
     name: str
     overrides: dict
     what: str
     differs: str = ""
+
+    def __post_init__(self):
+        from .config import TrainConfig
+
+        TrainConfig.from_dict(self.overrides, source=f"method '{self.name}'")  # raises ConfigError, naming the key
 
 
 METHODS = {m.name: m for m in [

@@ -19,6 +19,13 @@ def test_methods_are_configurations():
         for k, v in m.overrides.items():
             assert getattr(cfg, k) == v, (name, k)
     assert config_for("3dgs", "tiny").kernel == "ellipsoid" and config_for("envgs", "tiny").blend == "envgs"
+    # a method is checked when it is defined, not when it first runs
+    from glint_mi.config import ConfigError
+    from glint_mi.methods import Method
+    with pytest.raises(ConfigError, match=r"method 'typo': unknown field\(s\) \['w_l2'\]"):
+        Method("typo", {"w_l2": 1.0}, "a misspelled weight")
+    with pytest.raises(ConfigError, match=r"method 'bad': 'max_hits' = 0: must be >= 1"):
+        Method("bad", {"max_hits": 0}, "an impossible budget")
 
 
 def test_benchmark_tiny(tmp_path):
