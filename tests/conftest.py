@@ -89,3 +89,25 @@ def to_np(x):
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory):
+    """A tiny room (48 x 27, 8 views) with its optimisation scene beside it; its priors see the glass surface
+    (GLINT's video-prior assumption). One per test module (tests write runs beside it)."""
+    from glint_mi.dataset.generate import Preset, make_scene
+    from glint_mi.dataset.priors import Corruption, derive_priors
+    from glint_mi.scene import scene_xml
+
+    out = tmp_path_factory.mktemp("train") / "room"
+    make_scene(out, seed=0, preset=Preset.named("tiny"), sfm="none")
+    derive_priors(out, 0, Corruption(see_through_glass=0.0))
+    (out.parent / "scene.xml").write_text(scene_xml(out))
+    return out
+
+
+def tiny_cfg(**kw):
+    """The tiny preset, logging rarely (tests read the history they need)."""
+    from glint_mi.config import TrainConfig
+
+    return TrainConfig.for_preset("tiny", **{"log_every": 1000, **kw})

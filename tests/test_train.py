@@ -23,25 +23,11 @@ from glint_mi.optim import RAW_FIELDS, Adam, raw_gradients
 from glint_mi.strategy import Strategy
 from glint_mi.train import Trainer
 
-from conftest import BITWISE, KBUFFER
+from conftest import BITWISE, KBUFFER, tiny_cfg
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-@pytest.fixture(scope="module")
-def room(tmp_path_factory):
-    """A tiny room (48 x 27, 8 views); its priors see the glass surface (GLINT's video-prior assumption)."""
-    from glint_mi.dataset.priors import Corruption, derive_priors
-
-    out = tmp_path_factory.mktemp("train") / "room"
-    make_scene(out, seed=0, preset=Preset.named("tiny"), sfm="none")
-    derive_priors(out, 0, Corruption(see_through_glass=0.0))
-    (out.parent / "scene.xml").write_text(scene_xml(out))
-    return out
-
-
-def tiny_cfg(**kw):
-    return TrainConfig.for_preset("tiny", **{"log_every": 1000, **kw})
 
 
 def test_pixel_rays_match_mitsuba_sensor(room):
@@ -1014,91 +1000,6 @@ def test_glint_without_a_glass_cue_trains_the_3dgs_run(room, tmp_path):
             np.testing.assert_array_equal(np.asarray(v), np.asarray(eb["renders"][view][k]), err_msg=f"{view} {k}")
 
 
-def test_render_tradeoff_benchmark_on_a_trained_run(room, tmp_path):
-    """benchmarks/bench_render_tradeoff.py renders one trained run with render-time variants: one row per variant,
-    the base as `evaluate` renders it, Mitsuba's queries (the CUDA path) the same image model, dropping sets a
-    different image; the summary's base is 1.00x and +0 dB."""
-    import csv
-    import sys as _sys
-
-    _sys.path.insert(0, str(ROOT / "benchmarks"))
-    import bench_render_tradeoff as brt
-
-    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=4, patches=4, components="all"),
-                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
-    tr.train(progress=False)
-    assert brt.main([str(tmp_path / "run"), "--reps", "1", "--variants", "2,7,8", "--out", str(tmp_path / "o")]) == 0
-    rows = {r["variant"]: r for r in csv.DictReader(open(tmp_path / "o" / "render_tradeoff.csv"))}
-    names = [v[0] for i, v in enumerate(brt.VARIANTS) if i in (0, 2, 7, 8)]
-    assert list(rows) == names
-    base, bvh, alone = (float(rows[n]["psnr"]) for n in (names[0], names[3], names[2]))
-    assert abs(bvh - base) < 0.05 and abs(alone - base) > 0.01, (base, bvh, alone)
-    assert float(rows[names[1]]["max_hits"]) == 64 and rows[names[3]]["traversal"] == "bvh"
-    text = (tmp_path / "o" / "render_tradeoff.md").read_text()
-    assert "| base (run's budget, all sets) |" in text and "| 1.00 |" in text and "+0.00" in text
-    assert (tmp_path / "o" / "render_tradeoff.png").stat().st_size > 0
-    (tmp_path / "o" / "render_tradeoff.md").unlink()
-    assert brt.main(["--from-csv", "--out", str(tmp_path / "o")]) == 0  # re-summarised from the CSV alone
-    assert (tmp_path / "o" / "render_tradeoff.md").read_text() == text
-
-
-def test_list_use_counts_listed_and_composited_entries(room, tmp_path):
-    """benchmarks/list_use.py: per set, the native lists' entries and the hits composited from them; a hit budget of
-    2 composites fewer, and lists fewer (the k-buffer holds the budget)."""
-    import sys as _sys
-
-    _sys.path.insert(0, str(ROOT / "benchmarks"))
-    import list_use
-
-    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=4, patches=4, components="all"),
-                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
-    tr.train(progress=False)
-    full = list_use.count_lists(tmp_path / "run", views=1)
-    assert set(full) == {"interface", "transmission", "reflection"}, full
-    for s in full.values():
-        assert 0 < s["composited"] <= s["listed"] and s["rounds"] >= 1, full
-    cfg = json.loads((tmp_path / "run" / "config.json").read_text())
-    cfg["max_hits"] = 2
-    (tmp_path / "run" / "config.json").write_text(json.dumps(cfg))
-    cut = list_use.count_lists(tmp_path / "run", views=1)
-    assert cut["interface"]["composited"] < full["interface"]["composited"], (cut, full)
-    assert cut["interface"]["listed"] < full["interface"]["listed"], (cut, full)
-
-
-def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
-    """benchmarks/glass_pixels.py: on synthetic glass pixels, the run's and the prior's normal errors, the depth
-    against the pane's and the share behind it, per subset (t > 0.5 and the rest); on a trained and evaluated run
-    it reads the saved renders and counts every glass pixel of the test views once."""
-    import sys as _sys
-
-    _sys.path.insert(0, str(ROOT / "benchmarks"))
-    import glass_pixels
-
-    from glint_mi.evaluate import evaluate
-
-    z = np.array([0.0, 0.0, 1.0])
-    tilt = np.array([np.sin(np.radians(30)), 0.0, np.cos(np.radians(30))])
-    px = {"normal": np.array([z, z, tilt, tilt]), "prior": np.array([tilt, tilt, z, np.zeros(3)]),
-          "gt_normal": np.array([z] * 4), "depth": np.array([1.0, 1.0, 1.5, 1.2]), "gt_depth": np.ones(4),
-          "t": np.array([0.9, 0.6, 0.1, 0.5])}
-    s = glass_pixels.glass_split(px)
-    assert s["t>0.5"]["share"] == 0.5 and s["t<=0.5"]["share"] == 0.5
-    assert s["t>0.5"]["normal"] == pytest.approx(0.0, abs=1e-4) and s["t<=0.5"]["normal"] == pytest.approx(30.0)
-    assert s["t>0.5"]["prior_normal"] == pytest.approx(30.0)  # the pixel without a prior does not count
-    assert s["t<=0.5"]["prior_normal"] == pytest.approx(0.0, abs=1e-4)
-    assert s["t>0.5"]["behind"] == 0.0 and s["t<=0.5"]["behind"] == 1.0
-    assert s["all"]["depth_ratio"] == pytest.approx(1.1)
-    assert s["all"]["normal"] == pytest.approx(15.0)
-    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=2, patches=4, components="all"),
-                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
-    tr.train(progress=False)
-    evaluate(tr.integ_for_eval(), tr.eval_views(), tmp_path / "run", 0.0, **tr.eval_options())
-    got = glass_pixels.run_pixels(tmp_path / "run")
-    n_glass = sum(int(((v.load_gt()["glass"] > 0.5) & (v.load_gt()["depth"] > 0)).sum()) for v in tr.eval_views())
-    assert n_glass > 0 and all(len(a) == n_glass for a in got.values())
-    assert "| run/run | t>0.5 |" in glass_pixels.table([("run/run", glass_pixels.glass_split(got))])
-
-
 def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, tmp_path, monkeypatch):
     """Two runs triangulating the same capture at once (a benchmark's parallel lanes): the one whose cache write
     loses uses the winner's cached points, so every run starts from one point cloud (SIFT matching is multi-threaded
@@ -1134,85 +1035,6 @@ def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, 
     np.testing.assert_allclose(xyz, winner, atol=1e-5)
     assert (rgb == 7).all() and ds.sparse == folder
     assert not list(folder.parent.glob("0.partial-*"))  # our copy was removed
-
-
-def test_trade_off_variants_resume_finished_and_interrupted_runs(room, tmp_path):
-    """glint_mi.tradeoff.run_variants: a finished variant is read back, not trained; one whose evaluation was killed
-    (metrics.json marked interrupted) is evaluated again from its finished checkpoint, not trained again."""
-    from glint_mi.tradeoff import run_variants
-
-    xml = room.parent / "scene.xml"
-    kw = dict(iterations=4, patches=4, log_every=1000, eval_every=0)
-    first = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
-    run = tmp_path / "o" / "base"
-    ckpt = (run / "checkpoint.npz").stat().st_mtime_ns
-    again = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
-    assert again == first and (run / "checkpoint.npz").stat().st_mtime_ns == ckpt
-    m = json.loads((run / "metrics.json").read_text())
-    (run / "metrics.json").write_text(json.dumps({**m, "metrics": {**m["metrics"], "psnr": 1.0}, "interrupted": True}))
-    redone = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
-    assert redone[0]["psnr"] == pytest.approx(first[0]["psnr"], abs=0.05)
-    assert redone[0]["train_s"] == first[0]["train_s"]
-    assert "interrupted" not in json.loads((run / "metrics.json").read_text())
-    assert (run / "checkpoint.npz").stat().st_mtime_ns == ckpt  # not trained again
-    # killed after the last checkpoint, before the model was saved: the end of the run is finished, nothing trained
-    (run / "model" / "scene.xml").unlink()
-    (run / "metrics.json").write_text(json.dumps({**m, "interrupted": True}))
-    ended = run_variants(xml, tmp_path / "o", {"base": {}}, "tiny", log=lambda *a: None, **kw)
-    assert (run / "model" / "scene.xml").exists() and ended[0]["psnr"] == pytest.approx(first[0]["psnr"], abs=0.05)
-    assert int(np.load(run / "checkpoint.npz")["iteration"]) == 4
-
-
-def test_priors_row_scores_the_prior_maps_as_the_dataset_measured_them(room, tmp_path):
-    """The benchmark's `priors` row: the normal prior read back into world space scores, per test view, the error
-    that PRIORS.json recorded when the maps were written (measured in camera space, another code path); a wrong
-    camera-to-world rotation would not."""
-    from glint_mi.benchmark import score_priors
-
-    res = score_priors(room, tmp_path / "priors")
-    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
-    assert res["per_view"] and json.loads((tmp_path / "priors" / "metrics.json").read_text())["per_view"]
-    for name, m in res["per_view"].items():
-        assert m["normal_mae"] == pytest.approx(rec[name]["measured"]["normal_mae_deg"], abs=1e-3), name
-
-
-def test_cue_accuracy_counts_the_cue_against_the_glass(room, rng):
-    """benchmarks/cue_accuracy.py: with features seen through every glass pixel they land on (1.5x behind the
-    surface the prior sees) and on the surface elsewhere, the cue is "seen through" on the glass and "opaque"
-    off it, and the SfM depth term keeps none of the glass features; with every feature on the surface, the glass
-    is "opaque" too (what a see-through estimator does to the cue)."""
-    import json
-    import sys
-
-    from glint_mi.batch import pixel_rays
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
-    from cue_accuracy import cue_accuracy
-
-    ds = load_dataset(room)
-    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
-    affine = [[rec[v.name]["depth_scale"], rec[v.name]["depth_shift"]] for v in ds.train_views]
-
-    def observations(behind: float):
-        obs = {}
-        for v in ds.train_views:
-            gt = v.load_gt()
-            ys, xs = np.nonzero(gt["depth"] > 0)
-            k = rng.choice(len(xs), min(60, len(xs)), replace=False)
-            xs, ys = xs[k], ys[k]
-            d = pixel_rays(v, np.stack([xs, ys], -1))
-            dist = gt["depth"][ys, xs] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))
-            dist = np.where(gt["glass"][ys, xs] > 0.5, behind * dist, dist)
-            obs[v.name] = (np.stack([xs + 0.5, ys + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])
-        return obs
-
-    r = cue_accuracy(room, 0.05, 0.04, observations(1.5), affine)
-    assert r["glass_share"] > 0.01
-    assert r["through_on_glass"] > 3 * r["through_off_glass"] and r["opaque_off_glass"] > r["opaque_on_glass"]
-    assert r["sfm_depth_behind_pane"] == 0 or r["sfm_depth_behind_pane"] < 0.2 * r["sfm_depth_glass_pixels"]
-    flat = cue_accuracy(room, 0.05, 0.04, observations(1.0), affine)
-    assert flat["through_on_glass"] < 0.1 and flat["opaque_on_glass"] > 0.5 * flat["opaque_off_glass"] > 0.1
-    assert flat["opaque_on_glass"] > 5 * r["opaque_on_glass"]
 
 
 @BITWISE
