@@ -37,6 +37,37 @@ class Strategy:
         self.resets = 0
         self.last_reset = -10 ** 9
 
+    # ------------------------------------------------------------- schedule
+    def densifying(self, it: int) -> bool:
+        """Whether iteration ``it``'s gradients feed the densification statistic."""
+        c = self.cfg
+        return c.at(c.densify_from) <= it < c.at(c.densify_until)
+
+    def due(self, it: int) -> tuple[bool, bool]:
+        """(densify, reset): what the structure step after iteration ``it`` does."""
+        c, nxt = self.cfg, it + 1
+        reset = c.reset_every > 0 and nxt < c.at(c.densify_until) and nxt % c.every(c.reset_every) == 0
+        densify = self.densifying(it) and nxt % c.every(c.densify_every) == 0 and nxt > c.at(c.densify_from)
+        return densify, reset
+
+    def step_post(self, it: int, sets: dict[str, GaussianSet], roles: list[str], adam, sizes: dict[str, int],
+                  densify: bool, reset: bool) -> None:
+        """The structure step after iteration ``it`` on the sets ``roles`` (in place in ``sets``): densify and prune
+        with one floor for every set (from the interface's statistics), then the opacity / transparency resets.
+        ``sizes``: every kept set's size (the Gaussian budget counts them together)."""
+        nxt = it + 1
+        if densify:
+            floor = self.floor()
+            for role in roles:
+                others = sum(n for r, n in sizes.items() if r != role)
+                sets[role] = self.densify_and_prune(nxt, role, sets[role], adam, prune_large=self.resets > 0,
+                                                    others=others, floor=floor)
+                sizes[role] = len(sets[role])
+        if reset:
+            for role in roles:
+                fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
+                self.reset(nxt, role, sets[role], adam, fields)
+
     # ---------------------------------------------------------------- stats
     def accumulate(self, role: str, n: int, g_means: np.ndarray, g_opacity: np.ndarray) -> None:
         if role not in self.grad_sum or len(self.grad_sum[role]) != n:

@@ -423,7 +423,7 @@ class Trainer:
                 if counts[role] == bad:
                     self.log(f"iteration {self.it}: {bad} non-finite gradient entries in the {role} set, zeroed "
                              f"(counted in report.json 'nonfinite_gradients')")
-            if self._densifying():
+            if self.strategy.densifying(self.it):
                 self.strategy.accumulate(role, len(gs), g["means"], g["logit_opacity"])
             touched = (g["logit_opacity"] != 0) | np.any(g["means"] != 0, axis=1) | np.any(g["sh"][:, 0] != 0, axis=1)
             self.adam.step(role, gs, g, {"means": lr_pos}, rows=touched)
@@ -455,16 +455,13 @@ class Trainer:
             g = self.dev.gradients(role, grads, degree, zero)
             dr.eval(*g.values())
             seen, touched, means = self.dev.rows(role, g)
-            if self._densifying():
+            if self.strategy.densifying(self.it):
                 self.dev.accumulate(role, seen, means)
             dr.eval(touched)
             self.dev.step(role, g, touched, lr)
             self.dev.schedule(role)
             self._host_stale = True
 
-    def _densifying(self, it=None):
-        c, it = self.cfg, self.it if it is None else it
-        return c.at(c.densify_from) <= it < c.at(c.densify_until)
 
     # ---------------------------------------------------- structure steps
     def _structure(self, st):
@@ -478,22 +475,12 @@ class Trainer:
         c, it = self.cfg, self.it + 1
         if c.depth_align == "image" and "depth" in self.bank.has and it % c.every(c.depth_refit) == 0:
             self.bank.fit_depth_to_renders(self.render_depth)
-        reset = c.reset_every > 0 and it < c.at(c.densify_until) and it % c.every(c.reset_every) == 0
-        densify = self._densifying(self.it) and it % c.every(c.densify_every) == 0 and it > c.at(c.densify_from)
+        densify, reset = self.strategy.due(self.it)  # the strategy owns its schedule
         changed = sorted(st["trained"] & set(self.sets)) if densify or reset else []
         if changed:
             self.sync()
-        if densify:
-            floor = self.strategy.floor()  # one floor for every set of this step (from the interface's statistics)
-            for role in changed:
-                others = sum(len(g) for r, g in self.active_sets().items() if r != role)
-                self.sets[role] = self.strategy.densify_and_prune(it, role, self.sets[role], self.adam,
-                                                                  prune_large=self.strategy.resets > 0,
-                                                                  others=others, floor=floor)
-        if reset:
-            for role in changed:
-                fields = ("logit_opacity", "logit_transparency") if role == "interface" else ("logit_opacity",)
-                self.strategy.reset(it, role, self.sets[role], self.adam, fields)
+            sizes = {r: len(g) for r, g in self.active_sets().items()}
+            self.strategy.step_post(self.it, self.sets, changed, self.adam, sizes, densify, reset)
         self._reload(changed)
         components.decide(self, st)
 

@@ -1100,3 +1100,15 @@ def test_a_step_traces_its_stage_and_leaves_the_integrator_as_found(room, tmp_pa
     tr.integ.trace = spy
     tr.step()
     assert seen and all(s == {"interface"} for s in seen) and tr.integ.enabled == before != {"interface"}
+
+
+def test_the_strategy_owns_its_schedule():
+    """Strategy.due(it): densification every densify_every of the run after densify_from, up to the step that ends
+    the last iteration before densify_until; resets every reset_every before densify_until; densifying(it) says
+    which iterations feed the statistic."""
+    cfg = tiny_cfg(iterations=1000, densify_from=0.05, densify_until=0.5, densify_every=0.1, reset_every=0.2)
+    s = Strategy(cfg, 1.0, np.random.default_rng(0))
+    dens = [it + 1 for it in range(1000) if s.due(it)[0]]
+    resets = [it + 1 for it in range(1000) if s.due(it)[1]]
+    assert dens == [100, 200, 300, 400, 500] and resets == [200, 400]
+    assert not s.densifying(49) and s.densifying(50) and s.densifying(499) and not s.densifying(500)
