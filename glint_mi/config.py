@@ -222,19 +222,7 @@ class TrainConfig:
         except (OSError, json.JSONDecodeError) as e:
             raise ConfigError(f"{path}: cannot read the config ({e}); it must be a JSON object of TrainConfig fields.")
         base = cls.for_preset(values.get("preset", "quick"), values.get("variant", "supplement"))
-        if "iterations" in values and "epochs" not in values:  # saved before budgets in epochs: a fixed count
-            values = {**values, "epochs": 0.0}
-        if "train_downsample" in values:  # saved before the dataset's downscale replaced it (same meaning for
-            values = {**values, "downscale": values.pop("train_downsample"), "eval_full": True}  # training)
-        if values.get("trans_cue") == "sfm":  # saved when "sfm" named what is now auto
-            values = {**values, "trans_cue": "auto"}
-        if "densify_grad_rel" not in values:  # saved before the relative floor: its absolute floor alone
-            values = {**values, "densify_grad_rel": 0.0, "densify_grad": values.get("densify_grad", 2e-4)}
-        if "prior_layer" not in values:  # saved before the option: its priors supervised the interface everywhere
-            values = {**values, "prior_layer": "interface"}
-        if "fresnel" in values and "blend" not in values:  # saved before the blend option: a boolean
-            fresnel = values.pop("fresnel")
-            values = {**values, "blend": "fresnel" if fresnel else "envgs"}
+        values = migrate(values)
         return cls.from_dict({**dataclasses.asdict(base), **values}, source=str(path))
 
     def to_dict(self) -> dict:
@@ -338,6 +326,32 @@ class TrainConfig:
     def roles(self) -> list[str]:
         comps = self.components.replace(" ", "")
         return list(cv.ROLES) if comps in ("auto", "all") else [r for r in cv.ROLES if r in comps.split(",")]
+
+
+# Run folders written by earlier versions: (what changed, whether a saved config predates it, how to read it). Each
+# keeps the old run's meaning, so that it resumes as it trained (tests/test_train.py resumes one of each).
+MIGRATIONS = (
+    ("budgets in epochs", lambda v: "iterations" in v and "epochs" not in v,
+     lambda v: {**v, "epochs": 0.0}),  # a fixed iteration count
+    ("the dataset's downscale", lambda v: "train_downsample" in v,
+     lambda v: {**{k: x for k, x in v.items() if k != "train_downsample"}, "downscale": v["train_downsample"],
+                "eval_full": True}),  # the same meaning for training; it evaluated at full size
+    ("trans_cue 'sfm' renamed 'auto'", lambda v: v.get("trans_cue") == "sfm", lambda v: {**v, "trans_cue": "auto"}),
+    ("the relative densification floor", lambda v: "densify_grad_rel" not in v,
+     lambda v: {**v, "densify_grad_rel": 0.0, "densify_grad": v.get("densify_grad", 2e-4)}),  # its absolute floor
+    ("prior_layer", lambda v: "prior_layer" not in v,
+     lambda v: {**v, "prior_layer": "interface"}),  # its priors supervised the interface everywhere
+    ("the blend option", lambda v: "fresnel" in v and "blend" not in v,
+     lambda v: {**{k: x for k, x in v.items() if k != "fresnel"}, "blend": "fresnel" if v["fresnel"] else "envgs"}),
+)
+
+
+def migrate(values: dict) -> dict:
+    """A saved config's values in today's fields (:data:`MIGRATIONS`, in order)."""
+    for _, applies, change in MIGRATIONS:
+        if applies(values):
+            values = change(values)
+    return values
 
 
 def _typed(source: str, key: str, value, kind: type):

@@ -1112,3 +1112,29 @@ def test_the_strategy_owns_its_schedule():
     resets = [it + 1 for it in range(1000) if s.due(it)[1]]
     assert dens == [100, 200, 300, 400, 500] and resets == [200, 400]
     assert not s.densifying(49) and s.densifying(50) and s.densifying(499) and not s.densifying(500)
+
+
+def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
+    """A run whose config.json predates every migration (no epochs, train_downsample, trans_cue 'sfm', no relative
+    floor, no prior_layer, a fresnel boolean) resumes and trains on, read as it trained (config.migrate)."""
+    from glint_mi.config import MIGRATIONS
+
+    run = tmp_path / "old"
+    tr = Trainer(run, tiny_cfg(iterations=4, patches=4), scene=read_scene(room.parent / "scene.xml"),
+                 log=lambda *a: None)
+    tr.train(progress=False, until=2)
+    tr.save_checkpoint()
+    del tr
+    saved = json.loads((run / "config.json").read_text())
+    for k in ("epochs", "densify_grad_rel", "prior_layer", "blend", "downscale", "eval_full"):
+        saved.pop(k)
+    saved.update(train_downsample=1, trans_cue="sfm", fresnel=True, densify_grad=2e-4)  # 2e-4: the old default
+    (run / "config.json").write_text(json.dumps(saved))
+    cfg = TrainConfig.load(run / "config.json")
+    assert (cfg.epochs, cfg.downscale, cfg.trans_cue, cfg.densify_grad_rel, cfg.densify_grad, cfg.prior_layer,
+            cfg.blend) == (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel")
+    assert len(MIGRATIONS) == 6
+    again = Trainer(run, cfg, resume=True, log=lambda *a: None)
+    assert again.it == 2
+    again.train(progress=False)
+    assert again.it == 4 and (run / "model" / "scene.xml").exists()
