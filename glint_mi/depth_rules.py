@@ -20,7 +20,7 @@ TSGS = dict(window=0.03, start=0.0, end=0.2, observe_t=0.5, bg_t=0.98, binary=0.
 
 def interface_hits(integ, ray, forward, hit_list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per ray, the interface pass's composited Gaussians in order: (alpha [n, K], planar depth [n, K], count [n]),
-    from the pass's stored hit list (``trace(..., record=True)["_lists"][0]``), each kernel evaluated again exactly
+    from the pass's stored hit list (``trace(..., record=True)["hit_lists"][0]``), each kernel evaluated again exactly
     as the pass evaluated it."""
     import drjit as dr
     import mitsuba as mi

@@ -54,7 +54,7 @@ def render_view(integ, view: View, need_direct: bool = False, depth_rule: str = 
             depth = mi.Float(depth_rules.median_depth(np.array(out["median"], np.float64), z,
                                                       np.array(depth, np.float64)).astype(np.float32))
         elif lists:  # TSGS's rule reads the interface pass's composited Gaussians
-            alpha, z, _ = depth_rules.interface_hits(integ, ray, fwd, out["_lists"][0])
+            alpha, z, _ = depth_rules.interface_hits(integ, ray, fwd, out["hit_lists"][0])
             mask = np.zeros(len(dd)) if glass is None else glass.reshape(-1)[s:s + CHUNK]
             depth = mi.Float(depth_rules.first_surface_depth(alpha, z, mask, **depth_rules.TSGS).astype(np.float32))
         vals = {"rgb": out["rgb"], "depth": depth, "normal": out["normal"], "transparency": out["transparency"],

@@ -54,7 +54,7 @@ def budget_full(out: dict, max_hits: int, read: bool = True):
     import drjit as dr
     import mitsuba as mi
 
-    lists = out.get("_lists")
+    lists = out.get("hit_lists")
     if not lists or lists[0] is None:
         return float("nan")
     count = lists[0][1]
@@ -346,7 +346,7 @@ class Trainer:
             # stored lists while they fit the cap (a batch of 1M rays would need 5 GB at 256 hits): else re-trace
             record = c.stored_hits and self.integ.lists_fit(dr.width(ray), c.stored_hits_mb)
             out = self.integ.trace(ray, active, need=need, forward=fwd, record=record)
-            dr.eval(out["_passes"], out.get("_lists"))
+            dr.eval(out["passes"], out.get("hit_lists"))
         full = budget_full(out, c.max_hits, read=read)
         with phase("objective"):
             terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent,

@@ -466,8 +466,8 @@ class GlintIntegrator(GaussianPasses):
         """All buffers of the GLINT image model for a batch of rays (Dr.Jit arrays; plain AD when ``ad``).
 
         Returns ``rgb`` (Spectrum), the AOV groups of AOV_GROUPS (``trans_direct`` only if in ``need``, else zeros),
-        ``kd ks kt``, ``distance`` (expected distance along the ray) and ``_passes``, the per-set composites that
-        :meth:`backward` replays; with ``record``, also ``_lists``, each pass's stored hit list (see :meth:`march`),
+        ``kd ks kt``, ``distance`` (expected distance along the ray) and ``passes``, the per-set composites that
+        :meth:`backward` replays; with ``record``, also ``hit_lists``, each pass's stored hit list (see :meth:`march`),
         which the replay then walks instead of re-running the BVH queries (exact; memory rays x max_hits x 4 bytes
         per pass, so meant for training batches, not full-image renders).
         """
@@ -502,9 +502,9 @@ class GlintIntegrator(GaussianPasses):
                 lists.append(None)
             D = march(trans if "trans_direct" in need else None, o, d, active)
             out = self._combine(I, R, Tr, R2, D, weights, d, forward, order2)
-            out["_passes"] = (I, R, Tr, R2, D)
+            out["passes"] = (I, R, Tr, R2, D)
             if record:
-                out["_lists"] = tuple(lists)
+                out["hit_lists"] = tuple(lists)
             return out
 
     def backward(self, ray: mi.Ray3f, active, out: dict, adjoints: dict, forward=None, t_raise=None) -> None:
@@ -520,8 +520,8 @@ class GlintIntegrator(GaussianPasses):
         forward = self._forward if forward is None else forward
         o, d = mi.Point3f(dr.detach(ray.o)), mi.Vector3f(dr.detach(ray.d))
         active = mi.Bool(active)
-        I, R, Tr, R2, D = out["_passes"]
-        lI, lR, lTr, lR2, lD = out.get("_lists", (None,) * 5)
+        I, R, Tr, R2, D = out["passes"]
+        lI, lR, lTr, lR2, lD = out.get("hit_lists", (None,) * 5)
         dr.eval(I, R, Tr, R2, D)  # one kernel for all totals (else each field would re-run its pass when detached)
         refl, trans, intf = self.active_set("reflection"), self.active_set("transmission"), self.active_set("interface")
         order2 = self.max_order == 2 and refl is not None and trans is not None

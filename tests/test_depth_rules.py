@@ -65,7 +65,7 @@ def test_median_of_hit_lists_equals_the_integrators_median(rng):
     fwd = mi.Vector3f(0, 0, 1)
     with dr.suspend_grad():
         out = integ.trace(r, mi.Bool(True), forward=fwd, record=True)
-    alpha, z, count = R.interface_hits(integ, r, fwd, out["_lists"][0])
+    alpha, z, count = R.interface_hits(integ, r, fwd, out["hit_lists"][0])
     expected = np.array(out["depth"], np.float64)
     numpy_med, crossed = R._median(alpha, z, 0.5)  # from the hit lists, as TSGS's rule reads them
     med = R.median_depth(np.array(out["median"], np.float64), np.array(r.d)[2], expected)  # the composite
@@ -87,7 +87,7 @@ def _interface_transmittance(integ, view, pixels):
     fwd = mi.Vector3f(*[float(x) for x in f])
     with dr.suspend_grad():
         out = integ.trace(ray, mi.Bool(True), forward=fwd, record=True)
-    alpha, _, _ = R.interface_hits(integ, ray, fwd, out["_lists"][0])
+    alpha, _, _ = R.interface_hits(integ, ray, fwd, out["hit_lists"][0])
     return np.cumprod(np.c_[np.ones(len(alpha)), 1.0 - alpha], axis=1), np.array(out["alpha"], np.float64)
 
 

@@ -264,7 +264,7 @@ def test_replay_backward_equals_plain_ad(rng, kernel, detach):
     g_rp = grads()
     # the replay over the forward's stored hit lists (no BVH query) is the same computation
     out_l = integ.trace(r, mi.Bool(True), need={"trans_direct"}, forward=fwd, record=True)
-    assert sum(x is not None for x in out_l["_lists"]) == 5  # interface, reflection, transmission, order 2, direct
+    assert sum(x is not None for x in out_l["hit_lists"]) == 5  # interface, reflection, transmission, order 2, direct
     np.testing.assert_array_equal(np.array(out_l["rgb"]), np.array(out["rgb"]))
     integ.backward(r, mi.Bool(True), out_l, adj, forward=fwd)
     g_ls = grads()
@@ -292,7 +292,7 @@ def test_distortion_and_median_depth_follow_2dgs(rng):
     r = rays(np.c_[rng.uniform(-1.0, 1.0, (m, 2)), np.full(m, -1.0)], np.c_[rng.normal(0, 0.05, (m, 2)), np.ones(m)])
     with dr.suspend_grad():
         out = integ.trace(r, mi.Bool(True), forward=mi.Vector3f(0, 0, 1), record=True)
-        listed, count = out["_lists"][0]
+        listed, count = out["hit_lists"][0]
         listed, count = np.array(listed).reshape(m, -1), np.array(count)
         gs = integ.active_set("interface")
         ref_d, ref_med = np.zeros(m), np.zeros(m)

@@ -380,7 +380,7 @@ def test_device_statistics_equal_numpy_and_are_read_only_when_asked(tmp_path):
     assert read["total"] == pytest.approx(sum(v for k, v in read.items() if k != "total"), rel=1e-5)
     rec = tr.integ.trace(ray, mi.Bool(True), forward=fwd, record=True)
     assert isinstance(budget_full(rec, 4, read=False), dr.ArrayBase)
-    full = float(np.mean(np.asarray(rec["_lists"][0][1]) >= 4))
+    full = float(np.mean(np.asarray(rec["hit_lists"][0][1]) >= 4))
     assert budget_full(rec, 4) == pytest.approx(full) and 0 < full
     # a run: every logged row holds floats
     tr.it = 0

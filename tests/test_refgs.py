@@ -151,7 +151,7 @@ def test_refgs_gradients_match_finite_differences(rng):
         dr.enable_grad(params[k])
     integ.env.enable_grad()
     out = integ.trace(ray, mi.Bool(True), record=True)
-    dr.eval(out["_passes"])
+    dr.eval(out["passes"])
     integ.backward(ray, mi.Bool(True), out, {"rgb": mi.Color3f(*[mi.Float(w[:, i]) for i in range(3)])})
     value = lambda: float(np.sum(to_np(integ.trace(ray, mi.Bool(True))["rgb"]).T * w))
     g_env = integ.env.grad()  # level 0's, through the pyramid's transpose
