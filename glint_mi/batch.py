@@ -8,6 +8,7 @@ Generator, so a run is reproducible and resumable). Rays of a patch are contiguo
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -73,11 +74,9 @@ class RayBank:
             maps = [load_prior(root, v, kind) if use_priors else None for v in views]
             lack = [v.name for v, m in zip(views, maps) if m is None]
             if lack and len(lack) < len(views):  # a kind for some views only would be dropped without a word
-                from .data.priors import PriorError
+                from .data.priors import PriorError, partial_kind
 
-                raise PriorError(f"{root}/priors/{kind}: {len(lack)} of {len(views)} training views have no {kind} "
-                                 f"map ({', '.join(lack[:8])}{', ...' if len(lack) > 8 else ''}); write one for every "
-                                 f"training view, or remove the folder (or train with --set priors=none).")
+                raise PriorError(partial_kind(root, kind, lack, len(views)))
             if not lack:
                 self.priors[kind] = np.concatenate([m.reshape(h * w, -1) for m, (h, w) in zip(maps, self.sizes)])
         self.priors.setdefault("depth", None)
@@ -354,6 +353,17 @@ class RayBank:
                      None if self.sfm_depth is None else self.sfm_depth[flat])
 
 
+@functools.lru_cache(maxsize=8)
+def device_neighbours(patches: int, p: int):
+    """:func:`patch_neighbours` as UInt32 arrays of the variant in force, made once per batch shape (the
+    objective gathers with them every step)."""
+    import mitsuba as mi
+
+    from .render import aligned
+
+    return tuple(mi.UInt32(aligned(x, np.uint32)) for x in patch_neighbours(patches, p))
+
+
 def patch_neighbours(patches: int, p: int):
     """Indices (i, right, down) of every pixel that has a right and a lower neighbour in its patch."""
     dy, dx = np.mgrid[0:p - 1, 0:p - 1]
@@ -402,13 +412,11 @@ def to_device(b: Batch) -> DeviceBatch:
     """A host :class:`Batch` sent to the device as it is (tests and benchmarks that draw with :meth:`RayBank.sample`)."""
     import mitsuba as mi
 
-    from .render import floats
+    from .render import aligned, floats
 
     vec = lambda cls, x: None if x is None else cls(*floats(x))
     one = lambda x: None if x is None else floats(x)
     affine = None if b.depth_affine is None else (floats(b.depth_affine[:, 0]), floats(b.depth_affine[:, 1]))
-    from .render import aligned
-
     return DeviceBatch(mi.UInt32(aligned(b.view, np.uint32)), vec(mi.Point3f, b.origin),
                        vec(mi.Vector3f, b.direction), tuple(vec(mi.Vector3f, b.axes[:, :, k]) for k in range(3)),
                        vec(mi.Color3f, b.rgb), one(b.depth_prior), vec(mi.Vector3f, b.normal_prior),

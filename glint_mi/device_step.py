@@ -7,10 +7,10 @@ The host (numpy) :class:`glint_mi.gaussians.GaussianSet`, :class:`glint_mi.optim
 :class:`glint_mi.strategy.Strategy` stay the record: densification, resets, checkpoints and saving read them after
 :meth:`DeviceUpdate.pull`, and a set whose rows changed on the host is sent back with :meth:`DeviceUpdate.load`.
 
-The arithmetic is :func:`glint_mi.optim.raw_gradients` followed by :meth:`glint_mi.optim.Adam.step`, per
-element in float32 (the host reference computes the chain rule and the moments' update in float64 and rounds the
-moments and values to float32); the bias corrections are float64 on both. Tested equal to the reference within
-float32 rounding (tests/test_device_step.py); which one a run uses is the config's ``update`` (device | host).
+The arithmetic is :func:`glint_mi.optim.raw_gradients` followed by :meth:`glint_mi.optim.Adam.step`, operation
+by operation in the reference's precision (float64 where numpy computes in float64, float32 where it does): on LLVM
+the two are equal bit for bit, on CUDA (fast-math float32 division and square root) to float32 rounding
+(tests/test_device_step.py). Which one a run uses is the config's ``update`` (device | host).
 
 Every field is one flat array of N x C values (row-major, as the host array's memory); per-row quantities (the
 touched rows, the step counts) are gathered by ``i // C``. Values that change every step (the position learning

@@ -233,13 +233,12 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
     The terms and the statistics are reduced on the device. ``read`` (default) returns them as floats; with
     ``read=False`` they stay width-1 Dr.Jit arrays, scheduled for the next evaluation (the backward's), so a training
     step reads nothing back until it is logged (:func:`read_values`)."""
-    from .batch import DeviceBatch, patch_neighbours, to_device
-    from .render import floats
+    from .batch import DeviceBatch, device_neighbours, to_device
 
     if not isinstance(b, DeviceBatch):
         b = to_device(b)
     p = b.patch
-    nb = patch_neighbours(b.patches, p)
+    nb = device_neighbours(b.patches, p)  # made once per batch shape
     gt = b.rgb
     terms = {k: 0.0 for k in LOSS_NAMES}
     stats = {}
@@ -357,10 +356,6 @@ def read_values(values: dict) -> dict:
             for k, v in values.items()}
 
 
-def _lum(c):
-    """Per ray, the mean of a colour's channels (a scalar 0 for a pass that was not traced)."""
-    c = mi.Color3f(c)
-    return (c.x + c.y + c.z) / 3.0
 
 
 def component_stats(out: dict, gt) -> dict:
@@ -373,9 +368,9 @@ def component_stats(out: dict, gt) -> dict:
     float64 numpy definitions in tests/test_objective.py to float32 rounding."""
     w = out["weights"]
     C = mi.Color3f(out["rgb"])
-    img_e = dr.maximum(dr.mean(_lum(C)), 1e-6)
-    stats = {"share_reflection": dr.mean(w[1] * _lum(out["reflection"])) / img_e,
-             "share_transmission": dr.mean(w[2] * _lum(out["transmission"])) / img_e}
+    img_e = dr.maximum(dr.mean(_mean3(C)), 1e-6)
+    stats = {"share_reflection": dr.mean(w[1] * _mean3(out["reflection"])) / img_e,
+             "share_transmission": dr.mean(w[2] * _mean3(out["transmission"])) / img_e}
     surface = dr.detach(out["alpha"]) >= 0.5
     n = dr.maximum(mi.Float(dr.count(surface)), 1.0) * 3.0
     l1 = lambda x: dr.sum(dr.select(surface, dr.sum(dr.abs(x - gt)), 0.0)) / n
@@ -391,7 +386,9 @@ def component_stats(out: dict, gt) -> dict:
 
 
 def _mean3(c):
-    """The mean of a colour's channels, summed in numpy's order (float32)."""
+    """Per ray, the mean of a colour's channels, summed in numpy's order (float32; a scalar 0 for a pass that was
+    not traced)."""
+    c = mi.Color3f(c)
     return ((c.x + c.y) + c.z) / 3.0
 
 
@@ -415,9 +412,7 @@ def erode_blocks(mask, h: int, w: int):
 def photo_edges(gt, nb):
     """The photo's edge strength at the patch pixels ``nb`` (patch_neighbours' pixels with a right and a lower
     neighbour): mean over channels of |right - pixel| plus that of |below - pixel|."""
-    from .render import aligned
-
-    i, right, down = (mi.UInt32(aligned(x, np.uint32)) for x in nb)
+    i, right, down = nb
     at = lambda idx: dr.gather(mi.Color3f, gt, idx)
     c = at(i)
     return _mean3(dr.abs(at(right) - c)) + _mean3(dr.abs(at(down) - c))

@@ -78,6 +78,7 @@ class Trainer:
         self.elapsed = 0.0
         self.history: list[dict] = []
         self._unread = 0  # history rows from here on may hold device values (settle)
+        self._nonfinite_read: dict[str, int] = {}  # update: device's zeroed-gradient counts already reported
         self.report: dict = {"components": {}, "init": {}, "events": []}
         self.rng = np.random.default_rng(cfg.seed)
         self.stop_requested = False
@@ -234,9 +235,7 @@ class Trainer:
         """Send the sets' current values (and sizes) to the renderer; a `data` change rebuilds that set's BVH, so
         only ``roles`` (default all) are sent, packed as each shape was made (its opacity shells included)."""
         import drjit as dr
-        from glint_mi_plugins.glint_gaussians import pack
-
-        from glint_mi_plugins.glint_gaussians import info
+        from glint_mi_plugins.glint_gaussians import info, pack
 
         for role, gs in self.sets.items():
             if roles is not None and role not in roles:
@@ -329,14 +328,15 @@ class Trainer:
     def step(self, read: bool = True) -> dict:
         """One training step. Returns the loss terms and the batch's statistics: floats, or with ``read=False``
         width-1 Dr.Jit arrays that nothing reads back until :meth:`settle` (the training loop: one read per log)."""
-        with self.integ.tracing(self.stage()["traced"]):  # the stage's sets, for the forward and its replay
-            return self._step(read)
+        st = self.stage()
+        with self.integ.tracing(st["traced"]):  # the stage's sets, for the forward and its replay
+            return self._step(st, read)
 
-    def _step(self, read: bool) -> dict:
+    def _step(self, st: dict, read: bool) -> dict:
         import drjit as dr
         import mitsuba as mi
 
-        c, st, phase = self.cfg, self.stage(), self.phase
+        c, phase = self.cfg, self.phase
         with phase("sample"):  # the draws in numpy (3 numbers a patch), the rays and targets gathered on the device
             b = self.bank.sample_device(self.rng, c.patches, c.patch)
             ray, fwd = mi.Ray3f(b.origin, b.direction), b.axes[2]
@@ -376,7 +376,7 @@ class Trainer:
     def _count_nonfinite(self):
         """update: device counts the non-finite gradient entries it zeroes on the device; read them here (the host
         update counts them as they happen)."""
-        seen = self.__dict__.setdefault("_nonfinite_read", {})
+        seen = self._nonfinite_read
         for role, total in self.dev.read_bad().items():
             delta = total - seen.get(role, 0)
             if delta <= 0:
@@ -408,12 +408,8 @@ class Trainer:
                 continue
             g = raw_gradients(gs, grads, c.kernel)
             g["sh"][:, (st["sh_degree"] + 1) ** 2:] = 0.0
-            if role != "interface":  # beta and tau are interface attributes (the release's order 2 uses G_trans beta)
-                g["logit_transparency"][:] = 0.0
-                if not (role == "transmission" and c.max_order == 2):
-                    g["logit_specular"][:] = 0.0
-            elif "transmission" not in self.sets:  # no transmission set: tau means nothing, keeps its initial value
-                g["logit_transparency"][:] = 0.0
+            for f in self._frozen_fields(role):
+                g[f][:] = 0.0
             bad = sum(int(np.count_nonzero(~np.isfinite(v))) for v in g.values())
             if bad:  # zeroed for this step, counted in the log and the report (a NaN would poison Adam's moments)
                 for v in g.values():
@@ -428,31 +424,30 @@ class Trainer:
             touched = (g["logit_opacity"] != 0) | np.any(g["means"] != 0, axis=1) | np.any(g["sh"][:, 0] != 0, axis=1)
             self.adam.step(role, gs, g, {"means": lr_pos}, rows=touched)
 
+    def _frozen_fields(self, role: str) -> set[str]:
+        """The raw fields of ``role`` that get no gradient: beta and tau are interface attributes (the release's
+        order 2 uses G_trans's beta); without a transmission set tau means nothing and keeps its initial value."""
+        if role == "interface":
+            return set() if "transmission" in self.sets else {"logit_transparency"}
+        keep_beta = role == "transmission" and self.cfg.max_order == 2
+        return {"logit_transparency"} if keep_beta else {"logit_transparency", "logit_specular"}
+
     def _update_device(self, st, lr_pos: float):
         """:meth:`_update` on the device (update: device): the same chain rule, zeroed fields, statistics and
         selective Adam on Dr.Jit arrays; the host's sets go stale until :meth:`sync`."""
         import drjit as dr
         import mitsuba as mi
 
-        c = self.cfg
         lr = {"means": dr.opaque(mi.Float64, lr_pos)}
         degree = dr.opaque(mi.UInt32, st["sh_degree"])
         for role in list(self.sets):
             keys = [f"{role}.{k}" for k in PARAM_KEYS]
             grads = {k: dr.grad(self.params[key]) for k, key in zip(PARAM_KEYS, keys)}
-            dr.eval(*grads.values())
             for key in keys:
                 dr.clear_grad(self.params[key])
             if role not in st["trained"] or role not in st["traced"]:
                 continue
-            zero = set()
-            if role != "interface":
-                zero.add("logit_transparency")
-                if not (role == "transmission" and c.max_order == 2):
-                    zero.add("logit_specular")
-            elif "transmission" not in self.sets:
-                zero.add("logit_transparency")
-            g = self.dev.gradients(role, grads, degree, zero)
+            g = self.dev.gradients(role, grads, degree, self._frozen_fields(role))
             dr.eval(*g.values())
             seen, touched, means = self.dev.rows(role, g)
             if self.strategy.densifying(self.it):
@@ -586,7 +581,7 @@ class Trainer:
 
         m = evaluate(self.integ_for_eval(), self.eval_views(), write=False, **self.eval_options())["metrics"]
         row = {"iteration": self.it, "epoch": self.epoch,
-               "train_s": self.elapsed, "gaussians": sum(len(s) for s in self.active_sets().values()),
+               "train_s": self.elapsed, "gaussians": sum(len(self.sets[r]) for r in self.kept()),
                **{k: m.get(k, float("nan")) for k in M.METRICS}}
         self.report.setdefault("convergence", [])
         if not any(r["iteration"] == self.it for r in self.report["convergence"]):
@@ -616,11 +611,16 @@ class Trainer:
 
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
-        self.integ.select(self.active_sets())
+        self.integ.select(self.kept())
         return self.integ
 
     # ------------------------------------------------------ persistence
+    def kept(self) -> list[str]:
+        """The sets not dropped by components: auto (names only: nothing is read from the device)."""
+        return [r for r in self.sets if r not in self.dropped]
+
     def active_sets(self) -> dict[str, GaussianSet]:
+        """The kept sets' parameters on the host (brought up to date from the device first)."""
         self.sync()
         return {r: s for r, s in self.sets.items() if r not in self.dropped}
 
@@ -698,7 +698,7 @@ class Trainer:
         rep = dict(self.report)
         rep["events"] = [dataclasses.asdict(e) for e in self.strategy.events]
         rep["dropped"] = self.dropped
-        rep["sizes"] = {r: len(s) for r, s in self.active_sets().items()}
+        rep["sizes"] = {r: len(self.sets[r]) for r in self.kept()}
         atomic_write_text(self.run_dir / "report.json", json.dumps(rep, indent=1))
 
     def save_model(self) -> Path:

@@ -9,8 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import mitsuba as mi
-
 from glint_mi.data import load_dataset
 from glint_mi.dataset.generate import Preset, make_scene
 from glint_mi.methods import METHODS, config_for

@@ -13,7 +13,7 @@ import mitsuba as mi
 
 import glint_mi
 from glint_mi.data import DatasetError, View, load_dataset
-from glint_mi.dataset.cameras import MI_TO_COLMAP, rotmat_to_qvec, qvec_to_rotmat
+from glint_mi.conventions import MI_TO_COLMAP, qvec_to_rotmat, rotmat_to_qvec
 from glint_mi.dataset.generate import Preset, make_scene
 from glint_mi.exr import read_gt_exr
 from glint_mi.dataset.room import _overlap, build_room
@@ -262,7 +262,7 @@ def test_sfm_points_lie_on_surfaces(tmp_path):
     # the tracks: each observation is where its point projects in that view (dataset pixels), and they reach
     # the COLMAP files and read back as the same observations
     from glint_mi.data import read_observations
-    from glint_mi.dataset.cameras import MI_TO_COLMAP, write_colmap_text
+    from glint_mi.dataset.cameras import write_colmap_text
     n_obs = 0
     for c in cams:
         xy, rows = tracks[c.name]

@@ -216,3 +216,26 @@ def test_optimize_says_each_thing_once_and_shows_sfm_progress(tiny, tmp_path):
     assert "init transmission" not in text and "init reflection" not in text and "init interface" in text
     assert text.count("no glass cue: no albedo prior") == 1, text
     assert "components: dropped transmission, dropped reflection (why: above" in text
+
+
+def test_a_missing_frame_of_unknown_size_is_reported_as_missing(tiny, tmp_path):
+    """A capture with only camera_angle_x (no w, h) and a frame whose image is missing: the frame is listed with the
+    missing frames (and --skip-missing drops it), not refused for a zero focal length computed from its unknown
+    width."""
+    cap = _copy(tiny, tmp_path / "cap")
+    tj = json.loads((cap / "transforms.json").read_text())
+    w = tj["w"]
+    angle = 2 * np.arctan(0.5 * w / tj["fl_x"])
+    for k in ("fl_x", "fl_y", "w", "h"):
+        tj.pop(k, None)
+    tj["camera_angle_x"] = float(angle)
+    tj["frames"].append({"file_path": "images/gone.png", "transform_matrix": np.eye(4).tolist()})
+    (cap / "transforms.json").write_text(json.dumps(tj))
+    with pytest.raises(DatasetError, match=r"name images that are not there: images/gone\.png"):
+        load_dataset(cap / "transforms.json")
+    ds = load_dataset(cap / "transforms.json", missing="skip")
+    assert len(ds.views) == 6 and ds.views[0].K[0, 0] == pytest.approx(tiny_fx(tiny), rel=1e-6)
+
+
+def tiny_fx(root):
+    return json.loads((root / "transforms.json").read_text())["fl_x"]

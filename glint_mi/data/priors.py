@@ -178,10 +178,15 @@ def check_priors(root: Path, views) -> list[str]:
             except PriorError as e:
                 problems.append(str(e))
         if lack and len(lack) < len(views):
-            problems.append(f"{Path(root)}/priors/{kind}: {len(lack)} of {len(views)} training views have no {kind} "
-                            f"map ({', '.join(lack[:8])}{', ...' if len(lack) > 8 else ''}); write one for every "
-                            f"training view, or remove the folder (or train with --set priors=none).")
+            problems.append(partial_kind(root, kind, lack, len(views)))
     return problems
+
+
+def partial_kind(root, kind: str, lack: list[str], n_views: int) -> str:
+    """The message for a prior kind that some training views (``lack``) do not have."""
+    return (f"{Path(root)}/priors/{kind}: {len(lack)} of {n_views} training views have no {kind} map "
+            f"({', '.join(lack[:8])}{', ...' if len(lack) > 8 else ''}); write one for every training view, or "
+            f"remove the folder (or train with --set priors=none).")
 
 
 def priors_are_derived(root: Path) -> bool:

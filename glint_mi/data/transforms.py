@@ -81,6 +81,8 @@ def read_frames(path: Path) -> tuple[list[Frame], dict | None, np.ndarray | None
                 w = 0
             fx = fy = 0.5 * float(w) / np.tan(0.5 * float(angle))
         for key, value in (("fl_x", fx), ("fl_y", fy)):
+            if img is None and not w:  # a missing image of unknown size: listed with the missing frames instead
+                break
             if not (_number(value) and float(value) > 0):
                 raise DatasetError(f"{where}: '{key}' = {value!r}: the focal length must be a positive number of "
                                    f"pixels (or give 'camera_angle_x' in radians instead).")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import MI_TO_COLMAP, MI_TO_GL, qvec_to_rotmat, rotmat_to_qvec  # noqa: F401  (the readers' too)
+from ..conventions import MI_TO_COLMAP, MI_TO_GL, rotmat_to_qvec
 
 
 @dataclasses.dataclass

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .cameras import Camera, colmap_pose, qvec_to_rotmat
+from ..conventions import qvec_to_rotmat
+from .cameras import Camera, colmap_pose
 
 
 @contextlib.contextmanager
