@@ -301,47 +301,45 @@ def test_sfm_points_lie_on_surfaces(tmp_path):
 
 
 def test_derived_priors_have_the_documented_corruptions(scene_dir):
+    """The default (realistic) priors of a generated room: depth affine in the truth off glass up to smooth warps,
+    farther than the glass where the estimator sees through it; albedo there is the far surface's (darkened, the photo
+    baked in), never the glass BSDF's; normals in OpenCV camera space, facing the camera, ~15 deg off."""
     import glint_mi
     import mitsuba as mi
+    from glint_mi.conventions import world_to_opencv_normals
     from glint_mi.dataset.priors import _behind_glass, _first_albedo, load_prior, priors_are_derived
     ds = load_dataset(scene_dir)
     assert priors_are_derived(scene_dir)
     scene = glint_mi.load_file(scene_dir / "scene.xml")
     record = json.loads((scene_dir / "priors" / "PRIORS.json").read_text())
-    for v in ds.views[:4]:
+    assert record["model"] == "realistic"
+    checked, angles = 0, []
+    for v in ds.views:
         gt = v.load_gt()
         d, n, a = (load_prior(scene_dir, v, k) for k in ("depth", "normal", "albedo"))
         glass = gt["glass"] > 0.5
         opaque = ~glass & (gt["depth"] > 0)
-        # depth: affine in the truth off glass (unknown scale/shift), farther than the glass on glass (sees through)
+        rec = record["views"][v.name]
+        # depth: affine in the truth off glass (unknown scale/shift) up to the smooth warps
         A = np.column_stack([gt["depth"][opaque], np.ones(opaque.sum())])
         (s, b), *_ = np.linalg.lstsq(A, d[opaque], rcond=None)
-        # loose: at 48 x 27 the 1 px blur mixes depths across edges, which biases a plain least-squares fit
-        assert np.isclose(s, record["views"][v.name]["depth_scale"], rtol=0.3)
-        rel = np.abs(A @ [s, b] - d[opaque]) / np.abs(d[opaque])
-        assert np.median(rel) < 0.05
-        rec = record["views"][v.name]
-        if glass.sum() > 5 and rec["sees_through_glass"] and rec["see_through_share_of_glass"] > 0.5:
+        assert np.isclose(s, rec["depth_scale"], rtol=0.35)
+        assert np.median(np.abs(A @ [s, b] - d[opaque]) / np.abs(d[opaque])) < 0.08
+        n_gt = world_to_opencv_normals(gt["normal"], v.c2w)
+        angles.append(np.degrees(np.arccos(np.clip((n * n_gt).sum(-1), -1, 1)))[opaque].mean())
+        assert n_gt[opaque][:, 2].mean() < 0, "normals face the camera: negative z in OpenCV camera space"
+        if glass.sum() > 5 and rec["see_through_share_of_glass"] > 0.5:
+            sensor = mi.load_dict(v.sensor_dict())
+            z_behind, _, alb_behind = _behind_glass(scene, sensor)
             excess = (d - b) / s - gt["depth"]
             assert np.median(excess[glass]) > 0.05
-            # albedo: that of the surface the estimator sees - behind the glass where its depth sees through,
-            # the glass's own (near black) elsewhere on the pane
-            z_behind, _, alb_behind = _behind_glass(scene, mi.load_dict(v.sensor_dict()))
-            share = excess / np.maximum(z_behind - gt["depth"], 1e-6)  # how much of the behind surface it sees
-            through = glass & (share > 0.8)
-            on_glass = glass & (share < 0.2)
-            # the realistic model scales albedo by a per-image gain (0.8-1.2) and a smooth leak; blur mixes edges
-            ratio = a[through].mean() / alb_behind[through].mean()
-            assert through.sum() > 20 and 0.5 < ratio < 1.6, ratio
-            if on_glass.sum() > 5:
-                assert a[on_glass].mean() < 0.08  # the glass's own diffuse albedo is ~0
-        # normals: camera space (OpenCV), close to the truth off glass
-        from glint_mi.conventions import world_to_opencv_normals
-        n_gt = world_to_opencv_normals(gt["normal"], v.c2w)
-        ang = np.degrees(np.arccos(np.clip((n * n_gt).sum(-1), -1, 1)))[opaque]
-        # calibrated per view to the drawn target (about 15 deg on average, like a monocular estimator)
-        assert abs(ang.mean() - rec["target_normal_mae_deg"]) < 1.5, (ang.mean(), rec["target_normal_mae_deg"])
-        assert n_gt[opaque][:, 2].mean() < 0, "normals face the camera: negative z in OpenCV camera space"
+            ratio = a[glass].mean() / max(alb_behind[glass].mean(), 1e-6)
+            assert 0.4 < ratio < 1.8, ratio  # darkening 0.7-1, gain 0.8-1.2, the photo's leak, edge blur
+            bsdf = _first_albedo(scene, sensor)  # the glass's own (~0): never what the prior reports
+            assert (np.abs(a - bsdf).max(-1) < 0.01)[glass].mean() < 0.05
+            checked += 1
+    assert checked >= 1
+    assert 8 < np.mean(angles) < 25, angles
 
 
 def test_prior_readers_take_exr_channels_by_name(scene_dir, tmp_path):
@@ -396,11 +394,10 @@ def test_priors_without_albedo_that_see_the_glass(scene_dir, tmp_path):
 
 
 def test_realistic_priors_measure_like_an_estimator(scene_dir, tmp_path):
-    """The realistic model (the default): measured here from the written maps against ground truth, off glass the
-    normals are ~15 deg off (per-view targets 15 +- 3) and the depth AbsRel after a per-image affine fit ~0.05;
-    the errors are smooth (low frequency: neighbouring pixels err alike); on glass most views see through; the
-    albedo on the glass is the seen surface's (it varies), not a constant copied from the glass mask; PRIORS.json
-    records what the test measures."""
+    """The realistic model (the default), measured here from the written maps against ground truth: normals ~15 deg
+    off glass, depth AbsRel ~0.05 after a per-image affine fit, smooth errors (neighbouring pixels err alike); on glass
+    the estimator sees through over part of the glass; the masks are a segmenter's; PRIORS.json records what the
+    test measures, and the amplitudes it drew."""
     import shutil
 
     from glint_mi.conventions import world_to_opencv_normals
@@ -411,8 +408,9 @@ def test_realistic_priors_measure_like_an_estimator(scene_dir, tmp_path):
     derive_priors(work, seed=3)
     record = json.loads((work / "priors" / "PRIORS.json").read_text())
     assert record["model"] == "realistic" and record["derived_from_ground_truth"]
+    assert set(record["drawn"]) >= {"normal_world_deg", "depth_world", "tint", "pane_difficulty"}
     ds = load_dataset(work)
-    n_err, d_err, smooth, through, glass_albedo = [], [], [], [], []
+    n_err, d_err, smooth, through, ious = [], [], [], [], []
     for v in ds.views:
         gt = v.load_gt()
         valid, glass = gt["depth"] > 0, (gt["glass"] > 0.5) & (gt["depth"] > 0)
@@ -423,29 +421,26 @@ def test_realistic_priors_measure_like_an_estimator(scene_dir, tmp_path):
         n_err.append(ang[off].mean())
         d = load_prior(work, v, "depth")
         A = np.column_stack([gt["depth"][valid], np.ones(valid.sum())])
-        (w, q), *_ = np.linalg.lstsq(A, d[valid], rcond=None)
-        d_err.append(np.mean(np.abs((d[off] - q) / w - gt["depth"][off]) / gt["depth"][off]))
+        (w, q), *_ = np.linalg.lstsq(A, d[valid], rcond=None)  # as PRIORS.json measures (the fit sees the glass)
         rec = record["views"][v.name]
         assert abs(rec["measured"]["normal_mae_deg_off_glass"] - n_err[-1]) < 1e-3
-        assert abs(rec["measured"]["depth_absrel_off_glass"] - d_err[-1]) < 1e-4
-        # low frequency: the error angle of horizontal neighbours differs far less than the error itself
+        assert abs(rec["measured"]["depth_absrel_off_glass"]
+                   - np.mean(np.abs((d[off] - q) / w - gt["depth"][off]) / gt["depth"][off])) < 1e-4
+        A = np.column_stack([gt["depth"][off], np.ones(off.sum())])  # the estimator's error off glass alone
+        (w, q), *_ = np.linalg.lstsq(A, d[off], rcond=None)
+        d_err.append(np.mean(np.abs((d[off] - q) / w - gt["depth"][off]) / gt["depth"][off]))
         both = off[:, 1:] & off[:, :-1]
         smooth.append(np.abs(ang[:, 1:] - ang[:, :-1])[both].mean() / max(ang[off].mean(), 1e-6))
         if glass.sum() > 10:
-            through.append(rec["sees_through_glass"])
-            glass_albedo.append(load_prior(work, v, "albedo")[glass].std(0).mean())
-    assert 12 < np.mean(n_err) < 18 and 0.03 < np.mean(d_err) < 0.08, (np.mean(n_err), np.mean(d_err))
+            through.append(rec["see_through_share_of_glass"])
+            m = load_prior(work, v, "glass") > 0.5
+            ious.append((m & glass).sum() / max((m | glass).sum(), 1))
+            assert abs(rec["mask_iou"] - ious[-1]) < 1e-6
+    assert 9 < np.mean(n_err) < 22 and 0.02 < np.mean(d_err) < 0.1, (np.mean(n_err), np.mean(d_err))
     assert np.mean(smooth) < 0.4, np.mean(smooth)
-    assert len(through) >= 3 and 0.3 <= np.mean(through) < 1.0, through
-    assert np.mean(glass_albedo) > 0.01  # the seen surface's albedo, not a constant painted over the mask
+    assert len(through) >= 3 and 0.1 <= np.mean(through) < 1.0, through
     assert abs(record["measured"]["normal_mae_deg_off_glass"] - np.mean(n_err)) < 1e-3
-    # glass masks as a segmentation model gives them (TSGS's input): near the truth, not equal to it
-    ious = []
-    for v in ds.views:
-        m, g = load_prior(work, v, "glass") > 0.5, v.load_gt()["glass"] > 0.5
-        if g.sum() > 10:
-            ious.append((m & g).sum() / max((m | g).sum(), 1))
-    assert 0.3 < np.mean(ious) < 0.97 and abs(record["measured"]["glass_mask_iou"] - np.mean(ious)) < 0.2, ious
+    assert 0.2 < np.mean(ious) < 0.95 and abs(record["measured"]["glass_mask_iou"] - np.mean(ious)) < 1e-6, ious
 
 
 def test_cycles_rendered_scene_is_a_complete_dataset(tmp_path):

@@ -38,7 +38,7 @@ class PriorError(DatasetError):
 CONVENTION_KEYS = {"depth": ("type",), "normal": ("frame",), "albedo": ("space",), "glass": ()}
 # what a PRIORS.json may hold besides the conventions: the record glint_mi's generator writes, and free notes
 PRIORS_KEYS = (*CONVENTION_KEYS, "derived_from_ground_truth", "model", "seed", "kinds", "corruption", "views",
-               "measured", "notes")
+               "measured", "drawn", "notes")
 
 
 def prior_conventions(root: Path) -> dict:

@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+PRIOR_MODELS = ["realistic", "realistic-v1", "ideal"]  # glint_mi.dataset.priors.MODELS (tested equal)
 SUMMARY_KEYS = ("total_seconds", "gt_noise_psnr_db", "glass_pixel_fraction", "case_support")  # per scene
 
 
@@ -31,23 +32,27 @@ def main(argv=None) -> int:
                     help="ground truth from Mitsuba's volpath (default) or from Blender Cycles (needs `make "
                          "cycles-env`): images and every gt pass rendered by Cycles")
     mk.add_argument("--no-albedo-prior", action="store_true", help="derive depth and normal priors only")
-    mk.add_argument("--prior-model", choices=["realistic", "ideal"], default="realistic",
-                    help="derived priors: a monocular estimator's errors (default) or near ground truth")
+    mk.add_argument("--prior-model", choices=PRIOR_MODELS, default="realistic",
+                    help="derived priors: an estimator's errors, the same on a surface in every view (default); "
+                         "realistic-v1, the former model (calibrated per view, the glass BSDF's albedo); or near "
+                         "ground truth (ideal)")
     mk.add_argument("--see-through", type=float, default=None, metavar="P",
-                    help="probability per view that derived depth/normal priors see through the glass (default: the "
-                         "model's, 0.75 realistic, 1 ideal; 0: they see the glass surface)")
+                    help="how often derived depth/normal priors see through the glass instead of its surface (realistic: "
+                         "the expected share of glass pixels, default 0.6; realistic-v1: the probability per view, "
+                         "0.75; ideal: 1; 0: they see the glass surface)")
     mk.add_argument("--overwrite", action="store_true",
                     help="regenerate scenes that are already complete (default: skip them, so an interrupted "
                          "multi-scene run resumes where it stopped)")
     pr = sub.add_parser("priors", help="(re)derive imperfect priors for a generated scene")
     pr.add_argument("scene", type=Path)
     pr.add_argument("--seed", type=int, default=0)
-    pr.add_argument("--model", choices=["realistic", "ideal"], default="realistic",
-                    help="realistic (default): a monocular estimator's errors, ~15 deg normals and AbsRel ~0.05, "
-                         "smooth in the image, seeing through most glass; ideal: near ground truth (labelled)")
+    pr.add_argument("--model", choices=PRIOR_MODELS, default="realistic",
+                    help="realistic (default): an estimator's errors, drawn (not tuned per view), the same on a "
+                         "surface in every view, segmenter-like glass masks; realistic-v1: the former model; ideal: "
+                         "near ground truth. PRIORS.json records what each measures")
     pr.add_argument("--see-through", type=float, default=None, metavar="P",
-                    help="probability per view that the depth/normal priors see through the glass instead of its "
-                         "surface (default: the model's, 0.75 realistic, 1 ideal; 0: they see the glass)")
+                    help="how often the depth/normal priors see through the glass instead of its surface (default: "
+                         "the model's; see `make --help`; 0: they see the glass)")
     pr.add_argument("--no-albedo", action="store_true",
                     help="depth and normal only (default: as the scene's current priors, else with albedo)")
     cy = sub.add_parser("cycles", help="render a generated scene with Blender Cycles (the optional cycles extra)")
@@ -97,7 +102,8 @@ def main(argv=None) -> int:
         print(f"wrote {out} ({args.model} model, derived from ground truth): normal error {m['normal_mae_deg']:.1f} "
               f"deg ({m['normal_mae_deg_off_glass']:.1f} off glass, {m['normal_mae_deg_glass']:.1f} on glass), depth "
               f"AbsRel {m['depth_absrel']:.3f} after a per-image affine fit ({m['depth_absrel_off_glass']:.3f} / "
-              f"{m['depth_absrel_glass']:.3f})")
+              f"{m['depth_absrel_glass']:.3f})" + (f"; glass masks IoU {m['glass_mask_iou']:.2f}"
+                                                      if "glass_mask_iou" in m else ""))
         return 0
 
     from tqdm import tqdm

@@ -315,8 +315,8 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     ``glass=False``: the same room without the case's glass panels (frame and objects stay).
     ``renderer``: ``mitsuba`` (volpath ground truth) or ``cycles`` (Blender Cycles, the optional extra: images and
     every ground-truth pass from Cycles, so the room is rendered by an engine the model was not developed on).
-    ``albedo_prior=False`` leaves the albedo prior out; ``see_through`` is the probability per view that derived
-    depth/normal priors see through the glass (0: they see the glass surface, GLINT's video-prior assumption).
+    ``albedo_prior=False`` leaves the albedo prior out; ``see_through`` is how often derived depth/normal priors
+    see through the glass (the model's ``see_through_glass``) (0: they see the glass surface, GLINT's video-prior assumption).
 
     ``sfm``: ``known`` (SfM points triangulated with the true poses), ``full`` (also SfM without poses, its pose
     error reported in meta.json), ``none`` (no points3D)."""
@@ -378,8 +378,8 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
             model.see_through_glass = see_through
         derive_priors(tmp, seed, model, scene=scene, albedo=albedo_prior)
         meta["priors"] = (f"derived from ground truth ({prior_model} model, see priors/PRIORS.json): depth, normal"
-                          f"{', albedo' if albedo_prior else ' (no albedo prior)'}; see through glass with "
-                          f"probability {model.see_through_glass:g} per view")
+                          f"{', albedo' if albedo_prior else ' (no albedo prior)'}, glass masks; see_through_glass "
+                          f"{model.see_through_glass:g}")
     (tmp / "meta.json").write_text(json.dumps(meta, indent=1))
     state_file.unlink()
     for leftover in [*tmp.glob("images/*.tmp.*"), *tmp.glob("gt/*.tmp.*")]:  # from a run killed mid-write

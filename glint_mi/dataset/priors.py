@@ -1,15 +1,19 @@
 """Imperfect priors derived from ground truth for generated scenes (the readers: :mod:`glint_mi.data.priors`).
 
-Two models, both labelled in ``priors/PRIORS.json`` (``"derived_from_ground_truth": true``, the model, every
-parameter, and the *measured* error of the written maps, overall, off glass and on glass):
+Three models, each labelled in ``priors/PRIORS.json`` (``"derived_from_ground_truth": true``, the model, every
+parameter, what was drawn, and the *measured* error of the written maps, overall, off glass and on glass, the glass
+masks' IoU and how much the albedo marks the glass):
 
-- ``realistic`` (:class:`Realistic`, the default): errors with the shape of a monocular estimator's. Wrong mostly in
-  low frequencies: a smooth tilt field rotates the normals and a smooth warp bends the depth, calibrated per view so
-  that off glass the normals measure ~15 deg mean error (DSINE ~16, Metric3D v2 ~13, StableNormal ~17-19 on indoor
-  scenes) and the depth AbsRel ~0.05 after a per-image affine fit; plus pixel noise, edge blur, an unknown depth
-  scale and shift. On glass the estimator sees through in most views, over part of the glass (a smooth mask), to
-  the first opaque surface behind it; the albedo is that of the surface it sees (the glass's own diffuse albedo from
-  its BSDF where it sees the glass), with a per-image gain and a smooth shading leak.
+- ``realistic`` (:class:`Realistic`, the default): errors as an estimator makes them, drawn and never tuned against
+  the ground truth. Smooth error fields in world space (the same mistake on the same surface in every view: fusing
+  views does not average it out) plus per-view image-space jitter, pixel noise, edge blur, an unknown depth scale and
+  shift. On glass the depth and normal see through where a field on the pane (plus per-view jitter) says so; the
+  albedo is the far surface's, darkened and tinted, with part of the photo itself (shading, reflections, highlights)
+  baked in everywhere: never the glass BSDF's. Glass masks with a segmenter's failures: panes missed (the same panes
+  tend to be missed, and flicker between views), holes, ragged edges, false positives on glossy and dark surfaces.
+- ``realistic-v1`` (:class:`PerViewRealistic`, the default until 2026-11-26): errors calibrated per view against the
+  ground truth and independent between views; on glass the glass BSDF's own albedo where the estimator does not see
+  through (a dark patch that follows the glass); masks that are the truth with ragged edges.
 - ``ideal`` (:class:`Corruption`): near ground truth (2 % depth noise, 1 px blur, 5 deg normal noise; on glass a
   constant near-black albedo): results made with it say little about real estimators.
 """
@@ -46,8 +50,9 @@ def _blur(x, sigma):
     return gaussian_filter(x, sigma=(sigma, sigma) + (0,) * (x.ndim - 2))
 
 
-def _behind_glass(scene, sensor, max_steps=16):
-    """Depth (planar), camera ray distance, world normal and diffuse albedo of the first non-glass surface."""
+def _behind_glass(scene, sensor, max_steps=16, points=False):
+    """Planar depth, world normal and diffuse albedo of the first non-glass surface ([H, W], [H, W, 3] x 2), and
+    with ``points`` its world point [H, W, 3]."""
     import drjit as dr
     import mitsuba as mi
 
@@ -72,13 +77,17 @@ def _behind_glass(scene, sensor, max_steps=16):
         si.t = dr.norm(si.p - o)
         s = first_surface(si, full, mi.Bool(True), fwd)
         albedo = si.bsdf().eval_diffuse_reflectance(si, si.is_valid())
-    return (np.array(s["depth"]).reshape(h, w), np.array(s["normal"]).T.reshape(h, w, 3),
-            np.array(albedo).T.reshape(h, w, 3))
+        p = np.nan_to_num(np.array(si.p).T.reshape(h, w, 3))
+    out = (np.array(s["depth"]).reshape(h, w), np.array(s["normal"]).T.reshape(h, w, 3),
+           np.array(albedo).T.reshape(h, w, 3))
+    return (*out, p) if points else out
 
 
 @dataclasses.dataclass
-class Realistic:
-    """A monocular estimator's errors (see the module docstring); targets are drawn per view around the means."""
+class PerViewRealistic:
+    """``realistic-v1``, the former default (kept so that results can be compared): a monocular estimator's errors
+    calibrated per view against the ground truth (bisection), drawn independently in every view; on glass the glass
+    BSDF's own albedo where the estimator does not see through, and masks that are the truth with ragged edges."""
 
     normal_mae_deg: float = 15.0         # mean angular error off glass, per view ~ N(mean, spread)
     normal_spread_deg: float = 3.0
@@ -101,7 +110,6 @@ class Realistic:
     mask_edge: float = 0.015             # boundary error (x image width, smooth along the edge)
 
 
-MODELS = {"realistic": Realistic, "ideal": Corruption}
 
 
 def _field(rng, shape, sigma_px):
@@ -152,8 +160,8 @@ def _calibrate(make, measure, target, lo=0.0, hi=2.0, steps=18):
     return 0.5 * (lo + hi)
 
 
-def realistic_view(rng, c: Realistic, gt: dict, behind: dict, first_albedo, c2w) -> tuple[dict, dict]:
-    """One view's priors under :class:`Realistic`: ({'depth' [H,W], 'normal' [H,W,3] OpenCV, 'albedo' [H,W,3]},
+def realistic_view(rng, c: PerViewRealistic, gt: dict, behind: dict, first_albedo, c2w) -> tuple[dict, dict]:
+    """One view's priors under :class:`PerViewRealistic`: ({'depth' [H,W], 'normal' [H,W,3] OpenCV, 'albedo' [H,W,3]},
     record). ``gt``: the view's ground truth; ``behind``: depth, normal, albedo of the first opaque surface behind
     the glass; ``first_albedo``: the diffuse albedo of the first surface (glass included) from its BSDF."""
     from glint_mi.conventions import world_to_opencv_normals
@@ -217,6 +225,175 @@ def realistic_view(rng, c: Realistic, gt: dict, behind: dict, first_albedo, c2w)
             "albedo": albedo.astype(np.float32), "glass": mask.astype(np.float32)}, rec
 
 
+@dataclasses.dataclass
+class Realistic:
+    """``realistic``, the default: an estimator's errors drawn, never tuned against the ground truth, and the same
+    for a surface in every view. Amplitudes are drawn per room (the world-space part) and per view (the jitter) from
+    these ranges (uniform); what they amount to is measured afterwards and written to PRIORS.json."""
+
+    world_length_m: float = 0.8          # correlation length of the world-space error fields (metres)
+    normal_world_deg: tuple = (8.0, 14.0)  # rms tilt of the world-space normal error (per room)
+    normal_view_deg: tuple = (3.0, 8.0)  # rms tilt of the per-view, image-space normal error (per view)
+    pixel_noise_deg: float = 2.0         # per-pixel normal noise (std)
+    depth_world: tuple = (0.03, 0.07)    # rms of the world-space log-depth warp (per room)
+    depth_view: tuple = (0.015, 0.035)   # rms of the per-view log-depth warp
+    depth_noise: float = 0.005           # per-pixel multiplicative depth noise (std)
+    view_sigma: float = 0.25             # smoothness of the per-view fields (Gaussian sigma, x image width)
+    blur: float = 0.008                  # edge blur (sigma, x image width): estimators smooth across discontinuities
+    depth_scale: tuple = (0.5, 2.0)      # per-image unknown scale ...
+    depth_shift: tuple = (-0.3, 0.3)     # ... and shift (x the median depth)
+    see_through_glass: float = 0.6       # expected share of glass pixels where depth and normal see through ...
+    see_through_jitter: float = 0.7      # ... decided by a world-space field on the pane plus this much per-view field
+    see_through_view_sd: float = 0.5     # ... and a per-view offset (the estimator flickers between views)
+    glass_darkening: tuple = (0.7, 1.0)  # albedo seen through glass: the far surface's x this (per view) ...
+    glass_tint: float = 0.08             # ... x a per-room tint (per-channel gain 1 +- this)
+    photo_leak: tuple = (0.1, 0.35)      # share of the albedo that is the photo itself (shading, reflections and
+    #                                      highlights baked in), per view, brightness matched; the same everywhere
+    albedo_gain: tuple = (0.8, 1.2)      # per-image brightness error
+    albedo_field: float = 0.15           # smooth multiplicative albedo error (std of log gain)
+    albedo_noise: float = 0.02
+    # glass masks (a segmenter's, TSGS's input): panes missed, holes, ragged edges, flicker, false positives on
+    # glossy and dark surfaces. Calibrated (on the tuning rooms, not per view) to a mean IoU on glass of ~0.65:
+    # GDNet reports 0.876 on the GDD test set it was trained for (Mei et al., CVPR 2020, Table 2); a segmenter off
+    # its training domain does worse (GLINT's supplement, Fig. 7, shows fragmented masks missing whole panes)
+    pane_miss: float = 0.22              # probability that a pane is missed in a view (a per-room difficulty per
+    pane_difficulty_sd: float = 1.0      # pane, this spread, plus per-view noise: the same panes tend to be missed)
+    pane_view_sd: float = 0.6
+    mask_holes: float = 0.15             # share of a detected pane lost to holes (a world-space field + jitter)
+    mask_edge: float = 0.015             # boundary error (x image width, smooth along the edge)
+    mask_false: float = 0.35             # probability per view of false positives ...
+    mask_false_share: float = 0.25       # ... covering this share of the view's glossy and dark pixels (blobs)
+    mask_dark_quantile: float = 0.1      # "dark": the view's darkest pixels, this share
+
+
+class WorldField:
+    """A smooth random field on R^3 with zero mean and unit variance per output (random Fourier features of a
+    Gaussian kernel with correlation length ``length``): evaluated at a surface point it gives the same value in
+    every view, so an error drawn from it is the same mistake on the same surface from view to view."""
+
+    def __init__(self, rng, outputs: int, length: float, features: int = 64):
+        self.omega = rng.normal(size=(outputs, features, 3)) / max(length, 1e-6)
+        self.phase = rng.uniform(0, 2 * np.pi, size=(outputs, features))
+
+    def __call__(self, p):
+        """p [..., 3] -> [..., outputs]."""
+        arg = np.einsum("...k,ofk->...of", p, self.omega) + self.phase
+        return np.sqrt(2.0 / self.omega.shape[1]) * np.cos(arg).sum(-1)
+
+
+def _room_draws(rng, c: Realistic) -> dict:
+    """What a room's estimator gets wrong the same way in every view (drawn once per room)."""
+    return {"normal_field": WorldField(rng, 3, c.world_length_m), "depth_field": WorldField(rng, 1, c.world_length_m),
+            "see_field": WorldField(rng, 1, c.world_length_m), "hole_field": WorldField(rng, 1, 0.5 * c.world_length_m),
+            "normal_world_deg": float(rng.uniform(*c.normal_world_deg)),
+            "depth_world": float(rng.uniform(*c.depth_world)),
+            "tint": (1 + c.glass_tint * rng.uniform(-1, 1, size=3)).round(4).tolist(),
+            "pane_difficulty": {}, "pane_rng": np.random.default_rng(rng.integers(2**63))}
+
+
+def _panes(normal_world, glass):
+    """Integer pane keys [H, W] (-1 off glass): the glass's dominant normal axis and its sign (the case's panels)."""
+    axis = np.abs(normal_world).argmax(-1)
+    sign = np.take_along_axis(normal_world, axis[..., None], -1)[..., 0] > 0
+    return np.where(glass, 2 * axis + sign, -1)
+
+
+def _inverse_normal_cdf(p):
+    from scipy.special import ndtri
+
+    return float(ndtri(np.clip(p, 1e-9, 1 - 1e-9)))
+
+
+def estimator_view(rng, c: Realistic, room: dict, gt: dict, tr: dict, c2w) -> tuple[dict, dict]:
+    """One view's priors under :class:`Realistic`: ({'depth', 'normal' (OpenCV), 'albedo', 'glass'}, record).
+    ``gt``: the view's ground truth (its 'rgb' is the photo an estimator sees); ``tr``: what the view's rays hit
+    (:func:`_trace_view`); ``room``: :func:`_room_draws`. Nothing is calibrated against the ground truth here."""
+    from glint_mi.conventions import world_to_opencv_normals
+
+    h, w = gt["depth"].shape
+    sig = c.view_sigma * w
+    blur = c.blur * w
+    valid = gt["depth"] > 0
+    glass = valid & (gt["glass"] > 0.5)
+    photo = np.clip(np.nan_to_num(gt["rgb"]), 0, None)
+    # where on the glass the estimator sees through: a field on the pane (the same in every view), per-view jitter and
+    # a per-view offset around the expected share
+    m = np.zeros((h, w))
+    if glass.any() and c.see_through_glass > 0:
+        if c.see_through_glass >= 1:
+            m = glass.astype(np.float64)
+        else:
+            spread = np.sqrt(1 + c.see_through_jitter ** 2)
+            off = _inverse_normal_cdf(c.see_through_glass) * spread + c.see_through_view_sd * rng.normal()
+            s = room["see_field"](tr["first_p"])[..., 0] + c.see_through_jitter * _field(rng, (h, w), sig) + off
+            m = _blur((s > 0).astype(np.float64), 2.0) * glass
+    mg = m[..., None]
+    z_s = np.where(glass, m * tr["behind_depth"] + (1 - m) * gt["depth"], gt["depth"])
+    n_s = np.where(glass[..., None], _unit(mg * tr["behind_normal"] + (1 - mg) * gt["normal"]), gt["normal"])
+    p_s = np.where(glass[..., None], mg * tr["behind_p"] + (1 - mg) * tr["first_p"], tr["first_p"])
+    # normals: a world-space tilt (same surface, same error), a per-view image-space tilt, pixel noise, edge blur
+    a_view = np.radians(rng.uniform(*c.normal_view_deg))
+    rot_w = np.radians(room["normal_world_deg"]) * room["normal_field"](p_s)
+    n_cam = _unit(world_to_opencv_normals(_rotate(n_s, rot_w), c2w))
+    rot_v = a_view * np.stack([_field(rng, (h, w), sig) for _ in range(3)], -1)
+    rot_v = rot_v + np.radians(c.pixel_noise_deg) * rng.normal(size=(h, w, 3))
+    normal = np.where(valid[..., None], _unit(_blur(_rotate(n_cam, rot_v), blur)), 0.0)
+    # depth: world-space and per-view log warps, pixel noise, edge blur, an unknown scale and shift
+    d_view = rng.uniform(*c.depth_view)
+    warp = room["depth_world"] * room["depth_field"](p_s)[..., 0] + d_view * _field(rng, (h, w), sig)
+    z = np.where(valid, _blur(z_s * np.exp(warp) * (1 + c.depth_noise * rng.normal(size=(h, w))), blur), 0.0)
+    a = rng.uniform(*c.depth_scale)
+    shift = rng.uniform(*c.depth_shift) * np.median(z_s[valid]) if valid.any() else 0.0
+    depth = np.where(valid, a * z + shift, 0.0)
+    depth = np.where(valid & (depth <= 0), 1e-6, depth)  # keep every valid pixel positive (0 = invalid)
+    # albedo: the surface seen (through glass: the far surface, darkened and tinted), part of the photo itself baked
+    # in (shading, reflections, highlights: the same rule on and off glass), a gain, a smooth error and noise
+    dark = rng.uniform(*c.glass_darkening)
+    seen = np.where(glass[..., None], dark * np.asarray(room["tint"]) * tr["behind_albedo"], tr["first_albedo"])
+    leak = rng.uniform(*c.photo_leak)
+    lum_seen, lum_photo = seen[valid].mean(), photo[valid].mean() if valid.any() else 1.0
+    k = lum_seen / max(lum_photo, 1e-6)
+    gain = rng.uniform(*c.albedo_gain) * np.exp(c.albedo_field * _field(rng, (h, w), sig))[..., None]
+    alb = (1 - leak) * seen * gain + leak * k * photo + c.albedo_noise * rng.normal(size=(h, w, 3))
+    albedo = np.where(valid[..., None], np.clip(_blur(alb, blur), 0, 1), 0.0)
+    # glass masks: whole panes missed (a per-room difficulty per pane: the same panes, flickering), holes from a field
+    # on the surface, ragged edges, false positives on glossy and dark surfaces
+    panes = _panes(gt["normal"], glass)
+    det = np.zeros((h, w), bool)
+    missed, seen_panes = [], []
+    base = _inverse_normal_cdf(1 - c.pane_miss) * np.sqrt(c.pane_difficulty_sd ** 2 + c.pane_view_sd ** 2)
+    for key in np.unique(panes[panes >= 0]):
+        sel = panes == key
+        if sel.sum() < 4:
+            continue
+        diff = room["pane_difficulty"].setdefault(int(key), float(room["pane_rng"].normal(0, c.pane_difficulty_sd)))
+        lost = diff + c.pane_view_sd * rng.normal() > base
+        (missed if lost else seen_panes).append(int(key))
+        if not lost:
+            det |= sel
+    holes = room["hole_field"](tr["first_p"])[..., 0] + 0.5 * _field(rng, (h, w), 0.1 * w)
+    if det.any():
+        det &= holes < np.quantile(holes[det], 1 - c.mask_holes)
+    edge = _blur(det.astype(np.float64), max(c.mask_edge * w, 0.5))
+    mask = (edge > 0.5 + 0.35 * np.tanh(_field(rng, (h, w), sig))) & valid
+    lum = photo.mean(-1)
+    cand = valid & ~glass & (tr["first_glossy"] | (lum <= np.quantile(lum[valid], c.mask_dark_quantile)))
+    false_px = 0
+    if cand.any() and rng.random() < c.mask_false:
+        blob = _field(rng, (h, w), 0.05 * w)
+        fp = cand & (blob >= np.quantile(blob[cand], 1 - c.mask_false_share))
+        mask |= _blur(fp.astype(np.float64), 1.0) > 0.5
+        false_px = int((mask & ~glass).sum())
+    union = (mask | glass).sum()
+    rec = {"mask_iou": float((mask & glass).sum() / union) if glass.any() else None,
+           "panes_missed": missed, "panes_detected": seen_panes, "mask_false_pixels": false_px,
+           "see_through_share_of_glass": float(m[glass].mean()) if glass.any() else None,
+           "normal_view_deg": float(np.degrees(a_view)), "depth_view": float(d_view), "glass_darkening": float(dark),
+           "photo_leak": float(leak), "depth_scale": float(a), "depth_shift": float(shift)}
+    return {"depth": depth.astype(np.float32), "normal": normal.astype(np.float32),
+            "albedo": albedo.astype(np.float32), "glass": mask.astype(np.float32)}, rec
+
+
 def measure_priors(maps: dict, gt: dict, c2w, first_albedo=None) -> dict:
     """The error of one view's prior maps against ground truth (the first surface, glass included): normal mean
     angle (deg) and depth AbsRel after the per-image affine fit over every valid pixel (as a loss without SfM
@@ -254,6 +431,49 @@ def _first_albedo(scene, sensor):
     return np.nan_to_num(np.array(albedo).T.reshape(h, w, 3))
 
 
+def _trace_view(scene, sensor) -> dict:
+    """What one view's rays hit ([H, W, ...] numpy): the first surface's world point, diffuse albedo (its BSDF's) and
+    whether it is glossy; the first opaque surface behind any glass: planar depth, world normal, albedo, point."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from glint_mi.render import camera_rays
+
+    w, h = sensor.film().crop_size()
+    pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
+    ray, _ = camera_rays(sensor, pix)
+    with dr.suspend_grad():
+        si = scene.ray_intersect(ray)
+        glossy = mi.has_flag(si.bsdf().flags(), mi.BSDFFlags.Glossy) & si.is_valid()
+        first_p = np.array(si.p).T.reshape(h, w, 3)
+    z, n, alb, p = _behind_glass(scene, sensor, points=True)
+    return {"first_p": np.nan_to_num(first_p), "first_albedo": _first_albedo(scene, sensor),
+            "first_glossy": np.array(glossy).reshape(h, w), "behind_depth": z, "behind_normal": n,
+            "behind_albedo": alb, "behind_p": p}
+
+
+MODELS = {"realistic": Realistic, "realistic-v1": PerViewRealistic, "ideal": Corruption}
+
+
+def model_name(c) -> str:
+    """The name a prior model is recorded under in PRIORS.json."""
+    for name, cls in MODELS.items():
+        if type(c) is cls:
+            return name
+    raise TypeError(f"not a prior model: {type(c).__name__}; use one of {sorted(MODELS)}")
+
+
+def _albedo_cue(albedo, gt, dark: float = 0.05) -> dict:
+    """How much the albedo prior marks the glass: the share of pixels darker than ``dark`` on and off glass, and the
+    share of dark pixels that are glass (a prior copied from the glass BSDF makes these large)."""
+    valid = gt["depth"] > 0
+    glass = valid & (gt["glass"] > 0.5)
+    low = valid & (albedo.mean(-1) < dark)
+    return {"albedo_dark_share_glass": float(low[glass].mean()) if glass.any() else float("nan"),
+            "albedo_dark_share_off_glass": float(low[valid & ~glass].mean()),
+            "albedo_dark_pixels_on_glass": float(glass[low].mean()) if low.any() else float("nan")}
+
+
 def derive_priors(scene_dir: Path, seed: int = 0, corruption=None, scene=None, albedo: bool = True) -> Path:
     """Write imperfect priors for every view of a generated scene (``scene``: its loaded scene.xml, loaded here when
     omitted; ``albedo=False``: depth and normal only, like an estimator without intrinsic decomposition); returns
@@ -265,13 +485,14 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption=None, scene=None, a
     from glint_mi.data import load_dataset
 
     c = corruption if corruption is not None else Realistic()
-    model = "realistic" if isinstance(c, Realistic) else "ideal"
+    model = model_name(c)
     rng = np.random.default_rng(seed)
+    room = _room_draws(rng, c) if model == "realistic" else None
     scene_dir = Path(scene_dir)
     ds = load_dataset(scene_dir)
     scene = scene if scene is not None else glint_mi.load_file(scene_dir / "scene.xml")
     out = scene_dir / "priors"
-    kinds = tuple(k for k in KINDS if (albedo or k != "albedo") and (model == "realistic" or k != "glass"))
+    kinds = tuple(k for k in KINDS if (albedo or k != "albedo") and (model != "ideal" or k != "glass"))
     for k in KINDS:
         if k not in kinds:
             import shutil
@@ -286,12 +507,23 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption=None, scene=None, a
     for v in ds.views:
         gt = v.load_gt()
         sensor = mi.load_dict(v.sensor_dict())
+        if model == "realistic":
+            tr = _trace_view(scene, sensor)
+            maps, rec = estimator_view(rng, c, room, gt, tr, v.c2w)
+            err = {**measure_priors(maps, gt, v.c2w, tr["first_albedo"] if albedo else None),
+                   **(_albedo_cue(maps["albedo"], gt) if albedo else {})}
+            for k in ("depth", "normal", "glass") + (("albedo",) if albedo else ()):
+                np.save(out / k / f"{v.name}.npy", maps[k])
+            record["views"][v.name] = {**rec, "measured": err}
+            errors.append(err)
+            continue
         z_behind, n_behind, alb = _behind_glass(scene, sensor)
         first = _first_albedo(scene, sensor)
-        if model == "realistic":
+        if model == "realistic-v1":
             maps, rec = realistic_view(rng, c, gt, {"depth": z_behind, "normal": n_behind, "albedo": alb}, first,
                                        v.c2w)
-            err = measure_priors(maps, gt, v.c2w, first if albedo else None)
+            err = {**measure_priors(maps, gt, v.c2w, first if albedo else None),
+                   **(_albedo_cue(maps["albedo"], gt) if albedo else {})}
             np.save(out / "depth" / f"{v.name}.npy", maps["depth"])
             np.save(out / "normal" / f"{v.name}.npy", maps["normal"])
             np.save(out / "glass" / f"{v.name}.npy", maps["glass"])
@@ -318,13 +550,17 @@ def derive_priors(scene_dir: Path, seed: int = 0, corruption=None, scene=None, a
         if albedo:
             np.save(out / "albedo" / f"{v.name}.npy", alb_prior.astype(np.float32))
         maps = {"depth": dp, "normal": n_cam, "albedo": alb_prior}
-        err = measure_priors(maps, gt, v.c2w, first if albedo else None)
+        err = {**measure_priors(maps, gt, v.c2w, first if albedo else None),
+               **(_albedo_cue(alb_prior, gt) if albedo else {})}
         record["views"][v.name] = {"depth_scale": float(a), "depth_shift": float(b), "sees_through_glass": through,
                                    "measured": err}
         errors.append(err)
-    record["measured"] = {k: float(np.nanmean([e[k] for e in errors])) for k in errors[0]} if errors else {}
+    keys = sorted({k for e in errors for k in e})
+    record["measured"] = {k: float(np.nanmean([e.get(k, np.nan) for e in errors])) for k in keys}
     ious = [r["mask_iou"] for r in record["views"].values() if r.get("mask_iou") is not None]
-    if ious:
+    if ious:  # over the views that show glass
         record["measured"]["glass_mask_iou"] = float(np.nanmean(ious))
+    if room is not None:
+        record["drawn"] = {k: v for k, v in room.items() if isinstance(v, (int, float, list, dict))}
     (out / "PRIORS.json").write_text(json.dumps(record, indent=1))
     return out
