@@ -35,6 +35,20 @@ def test_methods_are_configurations():
         Method("bad", {"max_hits": 0}, "an impossible budget")
 
 
+def test_prior_parity_rows_take_glints_inputs_and_weights():
+    """3dgs-priors and 2dgs-priors (issue 44): their base method plus GLINT's prior terms with GLINT's weights,
+    photometric ones included (the priors weigh as much against the photos as in GLINT); nothing else differs."""
+    from glint_mi.config import TrainConfig
+
+    glint = TrainConfig.for_preset("tiny")
+    for row, base in (("3dgs-priors", "3dgs"), ("2dgs-priors", "2dgs")):
+        a, b = config_for(row, "tiny"), config_for(base, "tiny")
+        differ = {k for k in vars(a) if getattr(a, k) != getattr(b, k)}
+        assert differ == {"priors", "w_depth", "w_normal", "w_l1", "w_dssim"}, (row, differ)
+        for k in differ:
+            assert getattr(a, k) == getattr(glint, k), (row, k)
+
+
 def test_benchmark_tiny(tmp_path):
     data = tmp_path / "data"
     make_scene(data / "scene_000", seed=1, preset=Preset.named("tiny", views=6, spp=16), sfm="none")
