@@ -1,5 +1,6 @@
-"""Training configuration: one flat dataclass, presets sized for 2 CPU cores (and ``gpu``, the paper's budget), and
-the schedule variants (the paper's two and glint_mi's). A field's comment says what it is; why a default is what it
+"""Training configuration: layers (run, model, render, optim, losses, schedule, densify, evaluation; :data:`LAYERS`)
+composed into one :class:`TrainConfig`, presets sized for 2 CPU cores (and ``gpu``, the paper's budget), the schedule
+variants (the paper's two and glint_mi's), and the migrations of older run folders (:data:`MIGRATIONS`). A field's comment says what it is; why a default is what it
 is, with the measurement behind it, is in docs/decisions.md.
 
 Iteration-dependent settings are *fractions of the run* (the paper's 60k-iteration schedule, rescaled): e.g. the
@@ -30,11 +31,13 @@ class ConfigError(ValueError):
 
 
 @dataclasses.dataclass
-class TrainConfig:
+class RunConfig:
+    """The run: preset and schedule variant, seed, the budget (rays per iteration = patches x patch^2, drawn across
+    the training views; iterations or epochs), the dataset's scale, checkpoints and logs."""
+
     preset: str = "quick"
     variant: str = DEFAULT_VARIANT       # glint_mi | supplement | release (glint-method.md section 5; VARIANTS)
     seed: int = 0
-    # budget: rays per iteration = patches * patch^2, drawn across training views
     iterations: int = 1500
     epochs: float = 0.0                  # > 0: the budget in rays per training pixel; a run sets ``iterations`` from
     #                                      the training set's size (so a 192 x 108 room gets the per-pixel budget of a
@@ -43,13 +46,38 @@ class TrainConfig:
     patch: int = 8
     downscale: int = 1                   # read the dataset at 1/k of its resolution (area filter, or a capture's
     #                                      images_<k>/): photos, priors, training and evaluation alike
-    eval_full: bool = False              # evaluate at the dataset's full resolution instead of the training one
-    eval_depth: str = "expected"         # the depth a method reports (glint_mi.depth_rules): expected (GLINT, 3DGS),
-    #                                      median (2DGS, depth_ratio 1) or first_surface (TSGS, with priors/glass)
-    # model
+    checkpoint_every: int = 200
+    log_every: int = 10
+
+
+@dataclasses.dataclass
+class ModelConfig:
+    """The model: which Gaussian sets, their kernel and colour, the priors they read, their initialisation (method
+    section 1) and what ``components: auto`` keeps."""
+
     kernel: str = "surfel"
     sh_degree: int = 1                   # highest SH degree; raised one band every sh_every of the run
     components: str = "auto"             # auto | all | comma list of interface,transmission,reflection
+    priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
+    init_opacity: float = 0.1
+    grid_n: int = 32                     # reflection grid N^3 cells ...
+    grid_k: int = 5                      # ... with K random points each (paper: 32, 5)
+    init_min_points: int = 2000          # fewer SfM points than this: add random points in the scene box
+    auto_trans_min: float = 0.001        # keep the transmission set if L_trans's transparent mask covers this
+    #                                      share of the sampled pixels (mean since L_trans started)
+    auto_contrib_min: float = 0.005      # drop the reflection set if its share of the image energy is below this
+    #                                      (the transmission set: its mask alone, auto_trans_min)
+    no_glass: str = "3dgs"               # when components: auto drops both secondary sets before training (no glass
+    #                                      cue), the interface alone is a radiance field: 3dgs = train it exactly as
+    #                                      the 3dgs method does (3D Gaussians, its loss weights 0.8 / 0.2, no
+    #                                      depth-normal consistency, no SfM depth term); 3dgs+sfm = the same with
+    #                                      glint_mi's SfM depth term; glint = GLINT's surfels and weights
+
+
+@dataclasses.dataclass
+class RenderConfig:
+    """The image model (the integrator's properties, glint_mi.model.integrator_props) and how rays are traced."""
+
     max_order: int = 1
     max_hits: int = 256                  # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget"); a
     #                                      ray that spends it is cut short (its share: log.csv budget_full)
@@ -58,17 +86,22 @@ class TrainConfig:
     blend: str = "fresnel"               # fresnel (GLINT) | envgs: (1 - beta) c_I + beta c_R | alpha: plain compositing
     #                                      | refgs: Ref-GS's deferred srgb(c_I + s(reflect(d, N), beta as roughness))
     env_levels: int = 7                  # refgs: mip levels of its directional grid, 2^L x 2^(L+1) texels at level 0
-    lr_env: float = 0.002                # refgs: the grid's learning rate (Ref-GS's encoding_lr)
     env_init: float = 0.001              # refgs: the specular radiance s the grid starts at, everywhere
-    priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
-    trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | prior (a segmentation model's masks in
-    #                                      priors/glass/: the TSGS baseline) | gt (ground-truth glass masks, labelled)
-    # initialisation (method section 1)
-    init_opacity: float = 0.1
-    grid_n: int = 32                     # reflection grid N^3 cells ...
-    grid_k: int = 5                      # ... with K random points each (paper: 32, 5)
-    init_min_points: int = 2000          # fewer SfM points than this: add random points in the scene box
-    # Adam (method section 5); position lr is multiplied by the scene extent and decays to position_lr_final
+    traversal: str = "auto"              # kbuffer (glint_mi.native's Embree k-buffer, LLVM only) | bvh (Mitsuba's
+    #                                      queries, one per hit: the CUDA path) | auto: kbuffer where it builds
+    stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
+    #                                      the BVH queries (exact: same hits and arithmetic; rays x max_hits x 4 B
+    #                                      per pass); false = re-trace (benchmarks/profile_step.py compares)
+    stored_hits_mb: float = 1024.0       # cap on a batch's stored lists (rays x max_hits x 4 B x 5 passes): a larger
+    #                                      batch re-traces in the replay instead (the same gradients)
+
+
+@dataclasses.dataclass
+class OptimConfig:
+    """The optimiser (method section 5): Adam's learning rates (the position's is multiplied by the scene extent and
+    decays to lr_position_final), its variant, and where the update runs."""
+
+    lr_env: float = 0.002                # refgs: the grid's learning rate (Ref-GS's encoding_lr)
     lr_position: float = 1.6e-4
     lr_position_final: float = 1.6e-6
     lr_scale: float = 5e-3
@@ -82,15 +115,15 @@ class TrainConfig:
     adam: str = "selective"              # selective (touched rows only, per-row bias correction) | dense
     update: str = "device"               # device: chain rule, Adam and packing on Dr.Jit arrays (nothing goes to the
     #                                      host between structure steps) | host: numpy / native C++ (the reference)
-    traversal: str = "auto"              # kbuffer (glint_mi.native's Embree k-buffer, LLVM only) | bvh (Mitsuba's
-    #                                      queries, one per hit: the CUDA path) | auto: kbuffer where it builds
-    stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
-    #                                      the BVH queries (exact: same hits and arithmetic; rays x max_hits x 4 B
-    #                                      per pass); false = re-trace (benchmarks/profile_step.py compares)
-    stored_hits_mb: float = 1024.0       # cap on a batch's stored lists (rays x max_hits x 4 B x 5 passes): a larger
-    #                                      batch re-traces in the replay instead (the same gradients)
     lr_multiplier: float = 1.0           # x every learning rate (ray batches see each Gaussian less often)
-    # losses (method section 3); a weight of 0 switches a term off
+
+
+@dataclasses.dataclass
+class LossConfig:
+    """The objective (method section 3): weights (0 switches a term off) and each term's rules."""
+
+    trans_masks: str = "depth_gap"       # depth_gap (GLINT's L_trans) | prior (a segmentation model's masks in
+    #                                      priors/glass/: the TSGS baseline) | gt (ground-truth glass masks, labelled)
     w_l1: float = 1.2
     w_dssim: float = 0.4
     w_direct: float = 1.0                # photometric loss of the transmission set's direct image (x w_l1, w_dssim)
@@ -146,7 +179,12 @@ class TrainConfig:
     #                                      starts at 10k/60k, the loss at 0)
     tau_delta: float = 0.005             # L_trans depth gap, x scene extent
     trans_min_alpha: float = 0.5         # L_trans: a depth is valid where its set's accumulated alpha reaches this
-    # schedule, fractions of the run (paper iteration / 60k)
+
+
+@dataclasses.dataclass
+class ScheduleConfig:
+    """When each stage and term starts: fractions of the run (paper iteration / 60k)."""
+
     warmup: float = 5 / 60               # interface only until here (supplement)
     transmission_from: float = 5 / 60    # release: 1k
     reflection_from: float = 5 / 60      # release: 3k
@@ -158,7 +196,12 @@ class TrainConfig:
     treg_from: float = 7 / 60
     plausibility_from: float = 5 / 60
     sh_every: float = 1 / 60
-    # densification (one strategy object, glint_mi.strategy)
+
+
+@dataclasses.dataclass
+class DensifyConfig:
+    """Densification, pruning and opacity resets (one strategy object, glint_mi.strategy) and the Gaussian budget."""
+
     densify_from: float = 0.5 / 60
     densify_until: float = 21 / 60
     densify_every: float = 0.02
@@ -175,21 +218,47 @@ class TrainConfig:
     prune_scale: float = 0.1             # prune Gaussians larger than this x extent (after the first reset)
     max_gaussians: int = 30_000          # every set together: one budget per method (GLINT's three sets share
     #                                      what a one-set baseline gets)
-    # components: auto
-    auto_trans_min: float = 0.001        # keep the transmission set if L_trans's transparent mask covers this
-    #                                      share of the sampled pixels (mean since L_trans started)
-    auto_contrib_min: float = 0.005      # drop the reflection set if its share of the image energy is below this
-    #                                      (the transmission set: its mask alone, auto_trans_min)
-    no_glass: str = "3dgs"               # when components: auto drops both secondary sets before training (no glass
-    #                                      cue), the interface alone is a radiance field: 3dgs = train it exactly as
-    #                                      the 3dgs method does (3D Gaussians, its loss weights 0.8 / 0.2, no
-    #                                      depth-normal consistency, no SfM depth term); 3dgs+sfm = the same with
-    #                                      glint_mi's SfM depth term; glint = GLINT's surfels and weights
-    # run
-    checkpoint_every: int = 200
+
+
+@dataclasses.dataclass
+class EvalConfig:
+    """Evaluation: the resolution, the depth a method reports, and how often."""
+
+    eval_full: bool = False              # evaluate at the dataset's full resolution instead of the training one
+    eval_depth: str = "expected"         # the depth a method reports (glint_mi.depth_rules): expected (GLINT, 3DGS),
+    #                                      median (2DGS, depth_ratio 1) or first_surface (TSGS, with priors/glass)
     eval_every: int = 0                  # > 0: evaluate the test views every this many iterations and at the end
     #                                      (convergence.csv in the run folder; evaluation time is not training time)
-    log_every: int = 10
+
+
+LAYERS = {"run": RunConfig, "model": ModelConfig, "render": RenderConfig, "optim": OptimConfig, "losses": LossConfig, "schedule": ScheduleConfig, "densify": DensifyConfig, "evaluation": EvalConfig}  # name -> layer, in reading order
+
+
+@dataclasses.dataclass
+class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimConfig, RenderConfig, ModelConfig,
+                  RunConfig):  # fields in LAYERS' order (dataclasses collect them from the last base up)
+    """A run's configuration: the layers above composed (every field in exactly one layer; the run folder's
+    config.json holds them flat, as :meth:`to_dict` writes them). ``cfg.layer('losses')`` is one layer's values,
+    :meth:`compose` builds a config from layers."""
+
+    # -------------------------------------------------------------- layers
+    def layer(self, name: str):
+        """One layer's values (e.g. ``cfg.layer('losses')``, a :class:`LossConfig`)."""
+        if name not in LAYERS:
+            raise ConfigError(f"unknown config layer '{name}'; the layers are {', '.join(LAYERS)}.")
+        cls = LAYERS[name]
+        return cls(**{f.name: getattr(self, f.name) for f in dataclasses.fields(cls)})
+
+    @classmethod
+    def compose(cls, *layers, source: str = "config") -> "TrainConfig":
+        """A config from layer instances (the others at their defaults), checked like any other."""
+        values = {}
+        for part in layers:
+            if type(part) not in LAYERS.values():
+                kinds = ", ".join(c.__name__ for c in LAYERS.values())
+                raise ConfigError(f"{source}: {type(part).__name__} is not a config layer; use {kinds}.")
+            values.update(dataclasses.asdict(part))
+        return cls.from_dict(values, source=source)
 
     # -------------------------------------------------------------- helpers
     @classmethod
