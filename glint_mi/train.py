@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from . import conventions as cv
-from . import components
 from . import losses as L
 from .batch import RayBank
+from .components import ComponentsPolicy
 from .config import LOSS_NAMES, TrainConfig
 from .data import Dataset, DatasetError, load_dataset
 from .evaluate import eval_options
@@ -123,7 +123,7 @@ class Trainer:
             self.log(f"SfM depth: {sd['pixels']} training pixels carry a tracked feature's depth"
                      + (f" ({sd['why']})" if "why" in sd else ""))
         if not resume:
-            components.glass_cue_check(self)
+            self._glass_cue_check()
         from .dataset.priors import priors_are_derived
 
         self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
@@ -157,7 +157,8 @@ class Trainer:
             self._refgs_start()
         self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
         self.strategy = Strategy(self.cfg, self.extent, np.random.default_rng([self.cfg.seed, 1]))  # own stream
-        self.dropped: dict[str, str] = {}
+        self.components = ComponentsPolicy(self.cfg)
+        self.report["components"] = self.components.decisions
         self._lock = hold_run(self.run_dir)  # before anything is written (creates the folder)
         self.cfg.save(self.run_dir / "config.json")
         atomic_write_text(self.run_dir / "run.json", json.dumps(
@@ -477,7 +478,36 @@ class Trainer:
             sizes = {r: len(g) for r, g in self.active_sets().items()}
             self.strategy.step_post(self.it, self.sets, changed, self.adam, sizes, densify, reset)
         self._reload(changed)
-        components.decide(self, st)
+        due = self.components.due(it, self.sets)
+        if due:
+            self.settle()  # the statistics of the steps not logged yet
+        for role in due:
+            keep, why = self.components.decide(role, self.history, self.sets)
+            self.components.record(role, keep, it, why)
+            self.log(f"components auto: {'keep' if keep else 'drop'} {role}: {why}")
+
+    def _glass_cue_check(self) -> None:
+        """Before training: drop the secondary sets where there is no glass cue (ComponentsPolicy.glass_cue_drops),
+        before the scene is built (never given a BVH, traced or saved); a lone interface trains as 3DGS."""
+        drops = self.components.glass_cue_drops(self.sets, "albedo" in self.bank.has, self.bank.cue is not None)
+        for role, why in drops.items():
+            self.components.record(role, False, 0, why)
+            n = len(self.sets.pop(role))
+            self.log(f"components auto: drop {role} (its {n} initial Gaussians discarded): {why}")
+        profile = self.components.no_glass_profile() if drops else None
+        if profile:
+            self.cfg = dataclasses.replace(self.cfg, **profile)
+            self.strategy.cfg = self.components.cfg = self.cfg
+            self.cfg.save(self.run_dir / "config.json")
+            self.report["no_glass"] = profile
+            said = ", ".join(f"{k}={v}" for k, v in profile.items())
+            self.log(f"no glass: the interface alone is trained as 3DGS ({said}; no_glass: 3dgs+sfm adds glint_mi's "
+                     f"SfM depth term, glint keeps GLINT's surfels and weights)")
+
+    @property
+    def dropped(self) -> dict[str, str]:
+        """The sets components: auto dropped (role -> why)."""
+        return self.components.dropped
 
     # ------------------------------------------------------------- loop
     def train(self, progress: bool = True, until: int | None = None) -> dict:
@@ -665,8 +695,11 @@ class Trainer:
         self.extent = float(z["extent"])
         self.bounds = (z["bounds"][0], z["bounds"][1])
         self.rng.bit_generator.state = json.loads(str(z["rng"]))
-        self.dropped = json.loads(str(z["dropped"]))
         self.report = json.loads(str(z["report"]))
+        self.components = ComponentsPolicy(self.cfg)
+        self.components.load_state_dict({"dropped": json.loads(str(z["dropped"])),
+                                         "decisions": self.report.get("components", {})})
+        self.report["components"] = self.components.decisions
         self.history = json.loads(str(z["history"]))
         self._resume_affine = z.get("depth_affine")
         roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)

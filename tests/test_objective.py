@@ -273,19 +273,20 @@ def test_components_auto_decision_on_the_measured_pair(cover, share, kept):
     (mean since it started) alone: the pair measured on room 7301 with and without its glass (docs/decisions.md)
     falls on either side of the default threshold, and a short run whose set still carries little of the image
     energy keeps its glass (the energy share, which grows with the budget, used to drop it)."""
-    from types import SimpleNamespace
-
-    from glint_mi import components
+    from glint_mi.components import ComponentsPolicy
 
     c = TrainConfig.for_preset("bench", iterations=1000)
-    at = c.at(max(c.densify_until, c.trans_from + 0.1))
+    policy = ComponentsPolicy(c)
+    at = policy.decide_at()["transmission"]
+    roles = ["interface", "transmission", "reflection"]
+    assert at == c.at(max(c.densify_until, c.trans_from + 0.1)) and policy.due(at - 1, roles) == []
     hist = [{"mask_t": cover, "share_transmission": share, "share_reflection": 0.05}] * 60
-    logs = []
-    fake = SimpleNamespace(cfg=c, it=at - 1, sets={"interface": 0, "transmission": 0, "reflection": 0}, dropped={},
-                           history=hist, report={"components": {}}, log=logs.append, settle=lambda: None)
-    components.decide(fake, {})
-    assert fake.report["components"]["transmission"]["kept"] is kept, logs
-    assert ("transmission" not in fake.dropped) is kept
+    for role in policy.due(at, roles):
+        keep, why = policy.decide(role, hist, roles)
+        policy.record(role, keep, at, why)
+    assert policy.decisions["transmission"]["kept"] is kept
+    assert ("transmission" not in policy.dropped) is kept
+    assert policy.due(at, roles) == [r for r in roles[2:] if r not in policy.decisions]  # each set decided once
 
 
 def test_prior_layer_nearer_in_the_objective(tmp_path):

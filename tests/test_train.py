@@ -932,19 +932,15 @@ def test_glass_cue_rule(trans_cue, albedo, cue, kept):
     prior (the paper's masks), or with trans_cue auto (the default) also the SfM see-through cue; the paper's depth
     gap alone (no priors: a phone capture) is none, whatever trans_cue says (until 2026-11-25 trans_cue none skipped
     the check)."""
-    from types import SimpleNamespace
-
-    from glint_mi import components
+    from glint_mi.components import ComponentsPolicy
 
     cfg = TrainConfig.for_preset("tiny", components="auto", trans_cue=trans_cue, no_glass="glint")
-    fake = SimpleNamespace(cfg=cfg, sets={"interface": [0], "transmission": [0, 1], "reflection": [0]},
-                           bank=SimpleNamespace(has={"depth", "normal"} | ({"albedo"} if albedo else set()),
-                                                cue=np.zeros(4, np.int8) if cue else None),
-                           report={"components": {}}, dropped={}, log=lambda *a: None)
-    components.glass_cue_check(fake)
-    assert ("transmission" in fake.sets) == kept and ("reflection" in fake.sets) == kept
+    policy = ComponentsPolicy(cfg)
+    drops = policy.glass_cue_drops(["interface", "transmission", "reflection"], has_albedo=albedo, has_cue=cue)
+    assert (not drops) == kept
     if not kept:
-        assert "no albedo prior" in fake.report["components"]["transmission"]["why"]
+        assert set(drops) == {"transmission", "reflection"} and "no albedo prior" in drops["transmission"]
+        assert policy.no_glass_profile() is None  # no_glass: glint keeps GLINT's surfels and weights
 
 
 @pytest.mark.parametrize("profile", ["3dgs", "3dgs+sfm"])
