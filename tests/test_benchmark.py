@@ -354,6 +354,12 @@ def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
     n_glass = sum(int(((v.load_gt()["glass"] > 0.5) & (v.load_gt()["depth"] > 0)).sum()) for v in tr.eval_views())
     assert n_glass > 0 and all(len(a) == n_glass for a in got.values())
     assert "| run/run | t>0.5 |" in glass_pixels.table([("run/run", glass_pixels.glass_split(got))])
+    import contact_sheet  # benchmarks/contact_sheet.py on the same evaluated run: one row per test view
+
+    sheet = contact_sheet.contact_sheet(tmp_path / "run", tmp_path / "sheet.png")
+    from PIL import Image
+    w, h = Image.open(sheet).size
+    assert w > 800 and h > 100 * len(tr.eval_views()) * 0.5
 
 
 def test_trade_off_variants_resume_finished_and_interrupted_runs(room, tmp_path):
