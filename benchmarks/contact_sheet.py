@@ -31,7 +31,7 @@ def energy_shares(run: Path, last: int = 50) -> dict:
     return out
 
 
-def contact_sheet(run: Path, out: Path, views: int | None = None) -> Path:
+def contact_sheet(run: Path, out: Path, views: int | None = None, dpi: int = 110) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -64,7 +64,7 @@ def contact_sheet(run: Path, out: Path, views: int | None = None) -> Path:
                  f"{100 * s['mask_t']:.1f} % of pixels (last 50 logged steps)", fontsize=7)
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
+    fig.savefig(out, dpi=dpi)
     plt.close(fig)
     return out
 
@@ -74,8 +74,9 @@ def main(argv=None) -> int:
     ap.add_argument("run", type=Path)
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--views", type=int, default=None, help="at most this many test views")
+    ap.add_argument("--dpi", type=int, default=110)
     a = ap.parse_args(argv)
-    print(contact_sheet(a.run, a.out, a.views))
+    print(contact_sheet(a.run, a.out, a.views, a.dpi))
     return 0
 
 
