@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 
-def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=None, depth_affine=None) -> dict:
+def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=None, depth_affine=None,
+                 votes: str = "view", point_share: float = 0.2) -> dict:
     """The cue's labels on and off the ground-truth glass of ``root``'s training views (shares of pixels).
     ``observations`` / ``depth_affine`` replace the dataset's SfM tracks / the SfM alignment (tests)."""
     from glint_mi.batch import RayBank
@@ -33,7 +34,7 @@ def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=
     else:
         bank.depth_affine = np.asarray(depth_affine, np.float64)
     obs = ds.observations() if observations is None else observations
-    rep = bank.see_through_cue(obs, margin, radius)
+    rep = bank.see_through_cue(obs, margin, radius, votes, point_share)
     bank.set_sfm_depth(obs)
     glass = bank.glass > 0.5
     depth = np.concatenate([np.asarray(v.load_gt()["depth"]).reshape(-1) for v in ds.train_views])
@@ -55,13 +56,16 @@ def main(argv=None) -> None:
     ap.add_argument("datasets", nargs="+", type=Path)
     ap.add_argument("--margin", type=float, default=0.05, help="the cue's margin (TrainConfig.cue_margin)")
     ap.add_argument("--radius", type=float, default=0.04, help="the cue's radius (TrainConfig.cue_radius)")
+    ap.add_argument("--votes", choices=["view", "point"], default="view", help="TrainConfig.cue_votes")
+    ap.add_argument("--point-share", type=float, default=0.2, help="TrainConfig.cue_point_share")
     a = ap.parse_args(argv)
-    print(f"margin {a.margin}, radius {a.radius}; shares of training pixels\n")
+    print(f"margin {a.margin}, radius {a.radius}, votes {a.votes}"
+          + (f" (point share {a.point_share})" if a.votes == "point" else "") + "; shares of training pixels\n")
     print("| dataset | glass | +1 on glass | -1 on glass | +1 off glass | -1 off glass | SfM depth on glass "
           "(behind the pane) | SfM depth elsewhere |")
     print("|---|---|---|---|---|---|---|---|")
     for d in a.datasets:
-        r = cue_accuracy(d, a.margin, a.radius)
+        r = cue_accuracy(d, a.margin, a.radius, votes=a.votes, point_share=a.point_share)
         f = lambda x: "-" if not np.isfinite(x) else f"{x:.3f}"
         print(f"| {d} | {r['glass_share']:.3f} | {f(r['through_on_glass'])} | {f(r['opaque_on_glass'])} | "
               f"{f(r['through_off_glass'])} | {f(r['opaque_off_glass'])} | {r['sfm_depth_glass_pixels']} "

@@ -154,8 +154,9 @@ class RayBank:
         return {"aligned_views": done, "views": V, "points_per_view_median": float(np.median(counts)),
                 "inlier_share_median": float(np.median(inlier_share)) if inlier_share else float("nan")}
 
-    def observation_pixels(self, observations: dict | None) -> dict[int, tuple]:
-        """Per view index with tracked SfM features: (rows [n], cols [n], planar depth of their 3D points [n])."""
+    def observation_pixels(self, observations: dict | None, points: bool = False) -> dict[int, tuple]:
+        """Per view index with tracked SfM features: (rows [n], cols [n], planar depth of their 3D points [n]), and
+        with ``points`` their 3D points [n, 3] (one 3D point has the same coordinates in every view that tracks it)."""
         out = {}
         for i, v in enumerate(self.views):
             ob = (observations or {}).get(v.name)
@@ -167,7 +168,7 @@ class RayBank:
             col, row = np.floor(xy[:, 0]).astype(np.int64), np.floor(xy[:, 1]).astype(np.int64)
             ok = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (z > 0)
             if ok.any():
-                out[i] = (row[ok], col[ok], z[ok])
+                out[i] = (row[ok], col[ok], z[ok]) + ((xyz[ok],) if points else ())
         return out
 
     def prior_surface_depth(self, i: int, row: np.ndarray, col: np.ndarray) -> np.ndarray:
@@ -215,7 +216,8 @@ class RayBank:
                     aff[i] = (w, q)
         self.depth_affine = aff
 
-    def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04) -> dict:
+    def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04,
+                        votes: str = "view", point_share: float = 0.2) -> dict:
         """A 3D cue for L_trans that the transmission set cannot bend (glint_mi's; the paper has only the albedo
         prior): an SfM feature tracked in a view lies on the surface that view sees, or behind it if that surface
         is glass. With the depth prior aligned to the metric SfM points (:meth:`align_depth_priors`,
@@ -223,7 +225,12 @@ class RayBank:
         its depth behind the prior is seen through (+1), any other lies on an opaque surface (-1). Every pixel
         takes the label of its nearest observation within ``radius`` x the image width (0 farther away, or where
         observations on one pixel disagree). Sets ``self.cue`` [pixels] int8; without any labelled view
-        ``self.cue`` is None (the paper's depth-gap rule applies). Returns counts for the run report."""
+        ``self.cue`` is None (the paper's depth-gap rule applies). Returns counts for the run report.
+
+        ``votes``: ``view`` labels each observation by its own view's prior; ``point`` labels a 3D point seen through
+        (+1 in every view that tracks it) when at least ``point_share`` of its labelled observations are: a prior that
+        sees through the glass in some views (then the feature agrees with it) and the pane in others still marks
+        what lies behind the glass in all of them."""
         from scipy.ndimage import distance_transform_edt
 
         self.cue = None  # until a view has evidence: L_trans keeps the paper's depth-gap rule
@@ -232,13 +239,31 @@ class RayBank:
         if self.priors.get("depth") is None or self.depth_affine is None:
             return {"views": 0, "why": "no depth prior" if self.priors.get("depth") is None else
                     "the depth prior is not aligned to SfM (depth_align: sfm)"}
+        if votes not in ("view", "point"):
+            raise ValueError(f"votes must be view or point (got {votes!r})")
         cue = np.zeros(self.offsets[-1], np.int8)
         n_t = n_o = used = 0
-        for i, (row, col, z) in self.observation_pixels(observations).items():
-            h, w = self.sizes[i]
+        pix = self.observation_pixels(observations, points=True)
+        labels = {}
+        for i, (row, col, z, _) in pix.items():
             zs = self.prior_surface_depth(i, row, col)
-            seen = np.isfinite(zs)
-            lab = np.where(z > zs * (1.0 + margin), 1, -1)[seen]
+            labels[i] = np.where(np.isfinite(zs), np.where(z > zs * (1.0 + margin), 1, -1), 0)
+        if votes == "point" and labels:
+            _, inv = np.unique(np.concatenate([pix[i][3] for i in labels]), axis=0, return_inverse=True)
+            lab = np.concatenate([labels[i] for i in labels])
+            inv = inv.ravel()
+            plus = np.bincount(inv, weights=lab > 0)
+            share = plus / np.maximum(np.bincount(inv, weights=lab != 0), 1)
+            through = (share >= point_share) & (plus > 0)
+            start = 0
+            for i in labels:
+                n = len(labels[i])
+                labels[i] = np.where(labels[i] != 0, np.where(through[inv[start:start + n]], 1, -1), 0)
+                start += n
+        for i, (row, col, z, _) in pix.items():
+            h, w = self.sizes[i]
+            seen = labels[i] != 0
+            lab = labels[i][seen]
             acc = np.zeros((h, w))
             np.add.at(acc, (row[seen], col[seen]), lab)
             if not acc.any():
@@ -249,7 +274,7 @@ class RayBank:
             n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
         rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
                "pixels_seen_through": float(np.mean(cue == 1)), "pixels_opaque": float(np.mean(cue == -1)),
-               "margin": margin, "radius": radius}
+               "margin": margin, "radius": radius, "votes": votes}
         if not used:  # an all-zero cue would silence L_trans (no pixel has evidence)
             return {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
         self.cue = cue

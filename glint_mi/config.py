@@ -173,6 +173,9 @@ class LossConfig:
     #                                      with a dark background also casts; all = the whole opaque mask
     cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
+    cue_votes: str = "view"              # view: each observation labelled by its view's prior; point: a 3D point is
+    #                                      seen through in every view when cue_point_share of its views say so
+    cue_point_share: float = 0.2
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
     normal_loss: str = "l1_cos"          # cos: the supplement's 1 - <n, p>; l1_cos: + |n - p|_1 (glint_mi's)
     normal_early: str = "off"            # before normal_from: off (glint_mi) or unmasked (the paper: the mask
@@ -350,6 +353,8 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
              "use expected (GLINT) or median (2DGS)")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
+        need(self.cue_votes in ("view", "point"), "cue_votes", "use view or point")
+        need(0 < self.cue_point_share <= 1, "cue_point_share", "is a share of a point's views: (0, 1]")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
         need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
         need(self.no_glass in ("3dgs", "3dgs+sfm", "glint"), "no_glass", "use 3dgs, 3dgs+sfm or glint")

@@ -112,7 +112,8 @@ class Trainer:
             self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
                      f"{len(self.bank.views)} views (the others keep the per-batch fit)")
         if cfg.trans_cue != "none" and "transmission" in self.sets:  # only L_trans and plausibility read it
-            cue = self.bank.see_through_cue(self.ds.observations(), cfg.cue_margin, cfg.cue_radius)
+            cue = self.bank.see_through_cue(self.ds.observations(), cfg.cue_margin, cfg.cue_radius, cfg.cue_votes,
+                                            cfg.cue_point_share)
             self.report["trans_cue"] = cue
             self.log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
                      f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"

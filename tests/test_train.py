@@ -826,6 +826,34 @@ def test_sfm_see_through_cue(room, rng):
     assert bank.see_through_cue({}, 0.05, 0.1)["views"] == 0 and bank.cue is None
 
 
+def test_see_through_cue_point_votes(room):
+    """cue_votes point: a 3D point that the prior places behind the surface in a quarter of the views that track it
+    (the prior saw the pane there, and saw through the glass in the others) is seen through in all of them at
+    cue_point_share 0.2, in one only with view votes, in none at a share above its own; a point on the surface in
+    every view stays opaque."""
+    from glint_mi.batch import RayBank
+
+    bank = RayBank(load_dataset(room).train_views, room)
+    a, b = np.array([[1.0, 2.0, 3.0]]), np.array([[-1.0, 0.5, 2.0]])
+    pix = {i: (np.array([5, 20]), np.array([5, 20]), np.array([3.0 if i == 0 else 2.0, 2.0]), np.vstack([a, b]))
+           for i in range(4)}
+    bank.observation_pixels = lambda obs, points=False: pix
+    bank.prior_surface_depth = lambda i, row, col: np.full(len(row), 2.0)
+    bank.depth_affine = np.ones((len(bank.views), 2))
+    bank.priors["depth"] = np.ones((bank.offsets[-1], 1), np.float32)
+
+    def labels(**kw):
+        bank.see_through_cue({"any": None}, margin=0.05, radius=0.02, **kw)
+        at = lambda i, r: int(bank.cue[bank.offsets[i] + r * bank.sizes[i][1] + r])
+        return [at(i, 5) for i in range(4)], [at(i, 20) for i in range(4)]
+
+    assert labels(votes="view") == ([1, -1, -1, -1], [-1] * 4)
+    assert labels(votes="point", point_share=0.2) == ([1] * 4, [-1] * 4)
+    assert labels(votes="point", point_share=0.3) == ([-1] * 4, [-1] * 4)
+    with pytest.raises(ValueError, match="votes must be view or point"):
+        bank.see_through_cue({"any": None}, votes="pixel")
+
+
 @pytest.mark.parametrize("mode", ["masks", "free"])
 def test_t_raise_follows_the_opaque_mask(room, tmp_path, monkeypatch, mode):
     """t_raise: masks hands the replay 't may rise' = not in L_trans's opaque mask, from the end of densification;
