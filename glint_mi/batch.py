@@ -378,10 +378,16 @@ class RayBank:
                      None if self.sfm_depth is None else self.sfm_depth[flat])
 
 
-@functools.lru_cache(maxsize=8)
 def device_neighbours(patches: int, p: int):
-    """:func:`patch_neighbours` as UInt32 arrays of the variant in force, made once per batch shape (the
+    """:func:`patch_neighbours` as UInt32 arrays of the variant in force, made once per batch shape and variant (the
     objective gathers with them every step)."""
+    import mitsuba as mi
+
+    return _device_neighbours(patches, p, mi.variant())
+
+
+@functools.lru_cache(maxsize=8)
+def _device_neighbours(patches: int, p: int, variant: str):
     import mitsuba as mi
 
     from .render import aligned

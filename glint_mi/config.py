@@ -1,7 +1,7 @@
 """Training configuration: layers (run, model, render, optim, losses, schedule, densify, evaluation; :data:`LAYERS`)
 composed into one :class:`TrainConfig`, presets sized for 2 CPU cores (and ``gpu``, the paper's budget), the schedule
-variants (the paper's two and glint_mi's), and the migrations of older run folders (:data:`MIGRATIONS`). A field's comment says what it is; why a default is what it
-is, with the measurement behind it, is in docs/decisions.md.
+variants (the paper's two and glint_mi's), and the migrations of older run folders (:data:`MIGRATIONS`). A field's
+comment says what it is; why a default is what it is, with the measurement behind it, is in docs/decisions.md.
 
 Iteration-dependent settings are *fractions of the run* (the paper's 60k-iteration schedule, rescaled): e.g. the
 transparency bootstrapping starts at 5k/60k = 0.083 of the run. ``variant`` picks the schedule: the supplement's,
@@ -234,7 +234,9 @@ class EvalConfig:
     #                                      (convergence.csv in the run folder; evaluation time is not training time)
 
 
-LAYERS = {"run": RunConfig, "model": ModelConfig, "render": RenderConfig, "optim": OptimConfig, "losses": LossConfig, "schedule": ScheduleConfig, "densify": DensifyConfig, "evaluation": EvalConfig}  # name -> layer, in reading order
+LAYERS = {"run": RunConfig, "model": ModelConfig, "render": RenderConfig, "optim": OptimConfig,  # name -> layer,
+          "losses": LossConfig, "schedule": ScheduleConfig, "densify": DensifyConfig,  # in reading order
+          "evaluation": EvalConfig}
 
 
 @dataclasses.dataclass

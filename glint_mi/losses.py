@@ -356,8 +356,6 @@ def read_values(values: dict) -> dict:
             for k, v in values.items()}
 
 
-
-
 def component_stats(out: dict, gt) -> dict:
     """On the device (width-1 Dr.Jit arrays, nothing read back): each secondary set's share of the image energy,
     share_X = mean(k_X lum(c_X)) / mean(lum(C)), and its gain, how much it improves the batch's photometric fit: the

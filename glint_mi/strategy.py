@@ -86,8 +86,8 @@ class Strategy:
         gradient, and more rays pulling it different ways cancel (measured on the bundled room at iteration 240,
         the same 131k rays in batches of 1k to 64k: the interface's median 9.4e-4 -> 7.9e-5, 12x). A fraction of a
         median of the same step's statistics follows that scale: over the same range the transmission set's median
-        stayed within 3 % of the interface's and the reflection set's rose from 0.008 to 0.011 of it (1.5x). Call before the step's first densify_and_prune (which resets its set's
-        statistics)."""
+        stayed within 3 % of the interface's and the reflection set's rose from 0.008 to 0.011 of it (1.5x). Call
+        before the step's first densify_and_prune (which resets its set's statistics)."""
         ref = next((r for r in ("interface", *self.grad_sum) if r in self.grad_sum and (self.count[r] > 0).any()),
                    None)
         if ref is None:

@@ -316,7 +316,8 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     ``renderer``: ``mitsuba`` (volpath ground truth) or ``cycles`` (Blender Cycles, the optional extra: images and
     every ground-truth pass from Cycles, so the room is rendered by an engine the model was not developed on).
     ``albedo_prior=False`` leaves the albedo prior out; ``see_through`` is how often derived depth/normal priors
-    see through the glass (the model's ``see_through_glass``) (0: they see the glass surface, GLINT's video-prior assumption).
+    see through the glass (the model's ``see_through_glass``; 0: they see the glass surface, GLINT's video-prior
+    assumption).
 
     ``sfm``: ``known`` (SfM points triangulated with the true poses), ``full`` (also SfM without poses, its pose
     error reported in meta.json), ``none`` (no points3D)."""

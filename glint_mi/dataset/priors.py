@@ -219,7 +219,8 @@ def realistic_view(rng, c: PerViewRealistic, gt: dict, behind: dict, first_albed
     union = (mask | glass).sum()
     rec_mask = {"mask_missed": missed, "mask_iou": float((mask & glass).sum() / union) if union else float("nan")}
     rec = {**rec_mask, "sees_through_glass": sees_through,
-           "see_through_share_of_glass": float(m[glass].mean()) if glass.any() else None, "target_normal_mae_deg": target_n, "target_depth_absrel": target_d,
+           "see_through_share_of_glass": float(m[glass].mean()) if glass.any() else None,
+           "target_normal_mae_deg": target_n, "target_depth_absrel": target_d,
            "depth_scale": float(a), "depth_shift": float(shift)}
     return {"depth": depth.astype(np.float32), "normal": normal.astype(np.float32),
             "albedo": albedo.astype(np.float32), "glass": mask.astype(np.float32)}, rec
@@ -253,7 +254,8 @@ class Realistic:
     albedo_field: float = 0.15           # smooth multiplicative albedo error (std of log gain)
     albedo_noise: float = 0.02
     # glass masks (a segmenter's, TSGS's input): panes missed, holes, ragged edges, flicker, false positives on
-    # glossy and dark surfaces. Calibrated (on the tuning rooms, not per view) to a mean IoU on glass of ~0.65:
+    # glossy and dark surfaces. Set (on the tuning room 7301, not per view) for a mean IoU on glass of ~0.6 (measured
+    # 0.61 at the quick preset, 0.59 at bench):
     # GDNet reports 0.876 on the GDD test set it was trained for (Mei et al., CVPR 2020, Table 2); a segmenter off
     # its training domain does worse (GLINT's supplement, Fig. 7, shows fragmented masks missing whole panes)
     pane_miss: float = 0.22              # probability that a pane is missed in a view (a per-room difficulty per
@@ -351,8 +353,7 @@ def estimator_view(rng, c: Realistic, room: dict, gt: dict, tr: dict, c2w) -> tu
     dark = rng.uniform(*c.glass_darkening)
     seen = np.where(glass[..., None], dark * np.asarray(room["tint"]) * tr["behind_albedo"], tr["first_albedo"])
     leak = rng.uniform(*c.photo_leak)
-    lum_seen, lum_photo = seen[valid].mean(), photo[valid].mean() if valid.any() else 1.0
-    k = lum_seen / max(lum_photo, 1e-6)
+    k = seen[valid].mean() / max(photo[valid].mean(), 1e-6) if valid.any() else 1.0
     gain = rng.uniform(*c.albedo_gain) * np.exp(c.albedo_field * _field(rng, (h, w), sig))[..., None]
     alb = (1 - leak) * seen * gain + leak * k * photo + c.albedo_noise * rng.normal(size=(h, w, 3))
     albedo = np.where(valid[..., None], np.clip(_blur(alb, blur), 0, 1), 0.0)
@@ -442,12 +443,14 @@ def _trace_view(scene, sensor) -> dict:
     w, h = sensor.film().crop_size()
     pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
     ray, _ = camera_rays(sensor, pix)
-    with dr.suspend_grad():
+    with dr.suspend_grad():  # the first hit once, for all three (_first_albedo's albedo, from the same hit)
         si = scene.ray_intersect(ray)
         glossy = mi.has_flag(si.bsdf().flags(), mi.BSDFFlags.Glossy) & si.is_valid()
         first_p = np.array(si.p).T.reshape(h, w, 3)
+        albedo = si.bsdf().eval_diffuse_reflectance(si, si.is_valid())
+        first_albedo = np.nan_to_num(np.array(albedo).T.reshape(h, w, 3))
     z, n, alb, p = _behind_glass(scene, sensor, points=True)
-    return {"first_p": np.nan_to_num(first_p), "first_albedo": _first_albedo(scene, sensor),
+    return {"first_p": np.nan_to_num(first_p), "first_albedo": first_albedo,
             "first_glossy": np.array(glossy).reshape(h, w), "behind_depth": z, "behind_normal": n,
             "behind_albedo": alb, "behind_p": p}
 
