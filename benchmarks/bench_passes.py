@@ -63,8 +63,8 @@ def main() -> None:
     rows = []
     traversals = {"kbuffer": {"traversal": "kbuffer"}, "bvh": {"traversal": "bvh"},
                   "bvh, no walk back": {"traversal": "bvh", "inside_origins": False}}
-    if native.load() is None:
-        print(f"(no k-buffer rows: {native.why_not()})")
+    if native.why_not_here():  # not built, or a variant whose arrays are not in host memory (cuda)
+        print(f"(no k-buffer rows: {native.why_not_here()})")
         traversals.pop("kbuffer")
     for label, props in traversals.items():
         scene = B.glint_scene(sets, (w, h), components="all", **props)

@@ -34,8 +34,8 @@ def count_lists(run: Path, views: int = 2) -> dict:
     _, ds, cfg, _ = load_run(run)
     integ = load_model(run, cfg)
     if not integ.kbuffer:
-        raise SystemExit(f"{run}: the native k-buffer traversal is unavailable here "
-                         f"(build it: python -m glint_mi.native)")
+        raise SystemExit(f"{run}: the native k-buffer traversal is unavailable here: {native.why_not_here()} "
+                         f"(it needs an LLVM variant and the library: python -m glint_mi.native)")
     stats: dict[str, dict] = {}
     role = [None]
     query0, march0 = native.ShellSet.query, march._march_kbuffer

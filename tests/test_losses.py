@@ -127,7 +127,7 @@ def test_transparency_masks_on_hand_made_depths():
     # view-angle weight: 1 up to 70 deg, 0 beyond 80
     cos = np.cos(np.radians(np.full((H, W), 75.0)))
     m_t, _ = transparency_masks(D_T, D_I, 0.005, cos_view=cos)
-    np.testing.assert_allclose(m_t[m_t > 0], 0.5)
+    np.testing.assert_allclose(m_t[m_t > 0], 0.5, rtol=1e-6)  # float32 on a GPU: 0.5 + 1 ulp
 
 
 def test_bce_pulls_towards_its_target():

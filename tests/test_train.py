@@ -23,7 +23,7 @@ from glint_mi.optim import RAW_FIELDS, Adam, raw_gradients
 from glint_mi.strategy import Strategy
 from glint_mi.train import Trainer
 
-from conftest import BITWISE, KBUFFER, tiny_cfg
+from conftest import BITWISE, KBUFFER, LLVM, tiny_cfg
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -617,8 +617,11 @@ def test_device_and_host_updates_train_the_same(room, tmp_path, traversal):
         tr.train(progress=False)
         runs[name] = ([h["total"] for h in tr.history], {r: len(g) for r, g in tr.active_sets().items()})
     assert runs["device"][1] == runs["device_again"][1] == runs["host"][1]
-    np.testing.assert_allclose(runs["device"][0], runs["host"][0], rtol=1e-4)
-    np.testing.assert_allclose(runs["device_again"][0], runs["device"][0], rtol=1e-4)
+    # A GPU's float atomics sum the gradients in any order, and a densification between the steps carries that
+    # rounding on: measured on an H100, the third loss 0.85232 against 0.85208 (2.9e-4). 1e-3 there, 1e-4 on LLVM.
+    rtol = 1e-4 if LLVM else 1e-3
+    np.testing.assert_allclose(runs["device"][0], runs["host"][0], rtol=rtol)
+    np.testing.assert_allclose(runs["device_again"][0], runs["device"][0], rtol=rtol)
     with pytest.raises(ConfigError, match="update"):
         tiny_cfg(update="gpu").validate()
 
