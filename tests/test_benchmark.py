@@ -324,6 +324,29 @@ def test_list_use_counts_listed_and_composited_entries(room, tmp_path):
     assert cut["interface"]["listed"] < full["interface"]["listed"], (cut, full)
 
 
+def test_shell_mesh_walks_the_same_gaussians_on_triangles(room, tmp_path):
+    """benchmarks/bench_shell_mesh.py: one row per set; the triangle shells (an icosahedron around each shell) are
+    entered by at least the rays that enter the exact shells, and list most of the same Gaussians."""
+    import sys as _sys
+
+    _sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_shell_mesh
+
+    tr = Trainer(tmp_path / "run", tiny_cfg(iterations=2, patches=4, components="all"),
+                 scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+    tr.train(progress=False)
+    assert bench_shell_mesh.main(["--run", str(tmp_path / "run"), "--res", "24x16", "--reps", "1",
+                                  "--name", "t", "--out", str(tmp_path / "o")]) == 0
+    text = (tmp_path / "o" / "shell_mesh_t.md").read_text()
+    rows = {r.split("|")[1].strip(): [c.strip() for c in r.split("|")[2:-1]] for r in text.splitlines()
+            if r.startswith("| ") and "---" not in r and "set" not in r}
+    assert set(rows) == {"interface", "transmission", "reflection"}, text
+    for role, c in rows.items():
+        exact, tri = (float(v) for v in c[4].split(","))
+        assert exact > 0 and tri >= 0.95 * exact, (role, c)
+        assert float(c[5].rstrip(" %")) >= 50.0, (role, c)
+
+
 def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
     """benchmarks/glass_pixels.py: on synthetic glass pixels, the run's and the prior's normal errors, the depth
     against the pane's and the share behind it, per subset (t > 0.5 and the rest); on a trained and evaluated run
