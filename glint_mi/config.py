@@ -467,7 +467,7 @@ PRESETS = {
     # degree 3, the paper's learning rates and its SfM-grid initialisation; for a GPU (GLINT_VARIANT=cuda_ad_rgb)
     "gpu": dict(iterations=60000, epochs=0.0, patches=2025, patch=8, sh_degree=3, grid_n=32, grid_k=5,
                 init_min_points=20000, max_gaussians=500_000, checkpoint_every=5000, log_every=100,
-                densify_every=100 / 60000, reset_every=3000 / 60000, lr_multiplier=1.0),
+                densify_every=100 / 60000, reset_every=3000 / 60000, lr_multiplier=1.0, stored_hits_mb=8192.0),
 }
 SUPPLEMENT = dict(warmup=5 / 60, transmission_from=5 / 60, reflection_from=5 / 60, refine_from=40 / 60, tau_n=0.3)
 VARIANTS = {

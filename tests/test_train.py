@@ -1072,14 +1072,18 @@ def test_batches_over_the_list_cap_retrace_with_the_same_gradients(room, tmp_pat
     threads = dr.thread_count()
     dr.set_thread_count(1)
     try:
-        runs = {}
+        runs, said = {}, {}
         for mb in (1024.0, 0.0):
+            said[mb] = []
             tr = Trainer(tmp_path / f"mb{mb}", tiny_cfg(iterations=6, patches=4, stored_hits_mb=mb),
-                         scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+                         scene=read_scene(room.parent / "scene.xml"), log=said[mb].append)
             tr.train(progress=False)
             runs[mb] = tr
     finally:
         dr.set_thread_count(threads)
+    # the fallback is said once, with the cap that would keep the lists (it halves a GPU's 1M-ray step)
+    notes = {mb: [m for m in said[mb] if "stored hit lists" in m] for mb in said}
+    assert not notes[1024.0] and len(notes[0.0]) == 1 and "--set stored_hits_mb=" in notes[0.0][0], notes
     full = [h["budget_full"] for h in runs[1024.0].history]
     assert np.isfinite(full).all() and np.isnan([h["budget_full"] for h in runs[0.0].history]).all()
     a, b = runs[1024.0].sets["interface"], runs[0.0].sets["interface"]
