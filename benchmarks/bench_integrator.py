@@ -28,7 +28,7 @@ glint_mi.set_variant()
 import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
-from glint_mi.gaussians import GaussianSet  # noqa: E402
+from glint_mi.model.gaussians import GaussianSet  # noqa: E402
 from glint_mi_plugins.glint_gaussians import make_shape  # noqa: E402
 
 

@@ -28,7 +28,7 @@ import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
 from glint_mi import native  # noqa: E402
-from glint_mi.render import camera_rays  # noqa: E402
+from glint_mi.model.render import camera_rays  # noqa: E402
 
 
 def _np3(v) -> np.ndarray:

@@ -32,7 +32,7 @@ glint_mi.set_variant()
 
 from glint_mi.config import TrainConfig  # noqa: E402
 from glint_mi.evaluate import evaluate  # noqa: E402
-from glint_mi.train import Trainer  # noqa: E402
+from glint_mi.training.trainer import Trainer  # noqa: E402
 
 METRICS = ("psnr", "normal_mae", "absrel", "t_iou", "t_off_glass")
 

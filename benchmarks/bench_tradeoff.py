@@ -36,8 +36,8 @@ import glint_mi  # noqa: E402
 glint_mi.set_variant()
 
 from glint_mi.scene import scene_xml  # noqa: E402
-from glint_mi.tradeoff import (GRID, NO_GLASS, as_number, mesh_reference_trade, pareto, run_variants,  # noqa: E402
-                              summarise)
+from glint_mi.evaluation.tradeoff import (GRID, NO_GLASS, as_number, mesh_reference_trade, pareto,  # noqa: E402
+                                          run_variants, summarise)
 
 NO_GLASS_GROUP = "components (no glass)"  # another room: its own Pareto front
 KEYS = ("room", "seed", "trained_as", "psnr", "ssim", "normal_mae", "absrel", "t_iou", "train_s", "fps")

@@ -24,7 +24,7 @@ def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=
                  votes: str = "view", point_share: float = 0.2) -> dict:
     """The cue's labels on and off the ground-truth glass of ``root``'s training views (shares of pixels).
     ``observations`` / ``depth_affine`` replace the dataset's SfM tracks / the SfM alignment (tests)."""
-    from glint_mi.batch import RayBank
+    from glint_mi.training.batch import RayBank
     from glint_mi.data import load_dataset
 
     ds = load_dataset(root)

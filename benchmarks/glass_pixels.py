@@ -28,7 +28,7 @@ def glass_split(pixels: dict) -> dict:
     """Summary of concatenated glass pixels ``{"normal", "prior", "gt_normal" [N,3], "depth", "gt_depth", "t" [N]}``:
     per subset (all, t > 0.5, t <= 0.5) the share of the glass pixels, the mean normal error of the run and of the
     prior, the median depth / true depth and the share of pixels more than 10 % behind the pane."""
-    from glint_mi.metrics import angles_deg as angles
+    from glint_mi.evaluation.metrics import angles_deg as angles
 
     t = pixels["t"]
     err = angles(pixels["normal"], pixels["gt_normal"])
@@ -49,9 +49,9 @@ def glass_split(pixels: dict) -> dict:
 
 def run_pixels(run: Path) -> dict:
     """The glass pixels of a finished run's test views (its saved renders), concatenated."""
-    from glint_mi.batch import RayBank
+    from glint_mi.training.batch import RayBank
     from glint_mi.config import TrainConfig
-    from glint_mi.exr import read_gt_exr
+    from glint_mi.data.exr import read_gt_exr
     from glint_mi.runs import RunError, load_run_dataset
 
     cfg = TrainConfig.load(run / "config.json")

@@ -47,9 +47,9 @@ import mitsuba as mi  # noqa: E402
 from glint_mi.config import TrainConfig  # noqa: E402
 from glint_mi.machine import describe, summary  # noqa: E402
 from glint_mi.optimize import parse_sets  # noqa: E402
-from glint_mi.render import floats  # noqa: E402
+from glint_mi.model.render import floats  # noqa: E402
 from glint_mi.scene import read_scene  # noqa: E402
-from glint_mi.train import Trainer  # noqa: E402
+from glint_mi.training.trainer import Trainer  # noqa: E402
 
 PHASES = ("sample", "forward", "objective", "backward", "update", "structure", "bvh")
 
@@ -103,7 +103,7 @@ def _rebuild_every(n):
 
 
 def _adam(step):
-    from glint_mi.optim import Adam
+    from glint_mi.training.optim import Adam
     Adam.step = step
 
 
@@ -125,7 +125,7 @@ def _reuse_lists(on):
 
 def _device_update(tr, on):
     """update: device (on) or host (off), switched in place: the host's sets are brought up to date first."""
-    from glint_mi.device_step import DeviceUpdate
+    from glint_mi.training.device_step import DeviceUpdate
 
     if on and tr.dev is None:
         tr.dev = DeviceUpdate(tr.adam, tr.cfg.kernel, tr.extent)
@@ -136,7 +136,7 @@ def _device_update(tr, on):
         tr.dev = None
 
 
-from glint_mi.optim import Adam as _Adam  # noqa: E402
+from glint_mi.training.optim import Adam as _Adam  # noqa: E402
 
 SPEEDUPS = [("native BVH refit (a build per changed set and step before)", lambda tr: _rebuild_every(0),
              lambda tr: _rebuild_every(100)),
@@ -242,7 +242,7 @@ def view_rays(view, width: int, height: int):
     """Rays through the pixel centres of ``view``'s camera at ``width`` x ``height`` (intrinsics scaled)."""
     import dataclasses
 
-    from glint_mi.batch import pixel_rays
+    from glint_mi.training.batch import pixel_rays
 
     K = view.K.copy()
     K[0] *= width / view.width

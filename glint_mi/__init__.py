@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from ._llvm import LLVMError, check_llvm, configure_environment
+from glint_mi._llvm import LLVMError, check_llvm, configure_environment
 
 configure_environment()
 

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import metrics as M
-from .config import DEFAULT_VARIANT, VARIANTS
-from .methods import METHODS, TABLE_METHODS, config_for
+from glint_mi.evaluation import metrics as M
+from glint_mi.config import DEFAULT_VARIANT, VARIANTS
+from glint_mi.methods import METHODS, TABLE_METHODS, config_for
 
 COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae_glass", "absrel_glass", "t_iou",
            "t_off_glass")
@@ -52,9 +52,9 @@ def score_priors(scene_dir: Path, out: Path | None = None) -> dict:
     as GLINT's loss aligns it (scale and shift fitted to the metric SfM points the view sees; a per-image fit to
     the ground truth where a view has too few points, labelled), normals rotated to world axes; scored with the
     same metrics as a method's renders (no image, no transparency)."""
-    from .batch import RayBank
-    from .data import load_dataset
-    from .runs import atomic_write_text
+    from glint_mi.training.batch import RayBank
+    from glint_mi.data import load_dataset
+    from glint_mi.runs import atomic_write_text
 
     ds = load_dataset(scene_dir)
     views = ds.test_views
@@ -92,10 +92,10 @@ def score_priors(scene_dir: Path, out: Path | None = None) -> dict:
 def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, log=print, missing: str = "error",
             **extra) -> dict:
     """Train (or resume, or skip when finished) one method on one scene and evaluate it; returns the metrics."""
-    from .evaluate import evaluate
-    from .runs import finished_metrics, hold_run, train_unless_done
-    from .scene import read_scene, scene_xml
-    from .train import Trainer
+    from glint_mi.evaluate import evaluate
+    from glint_mi.runs import finished_metrics, hold_run, train_unless_done
+    from glint_mi.scene import read_scene, scene_xml
+    from glint_mi.training.trainer import Trainer
 
     done = finished_metrics(run)
     if done is not None:
@@ -194,8 +194,8 @@ def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
     first = sorted((runs[names[0]] / "renders").glob("*_rgb.png"))
     photo = None
     if first:  # the test photo at the renders' resolution, from the run's own dataset
-        from .config import TrainConfig
-        from .runs import load_run_dataset
+        from glint_mi.config import TrainConfig
+        from glint_mi.runs import load_run_dataset
 
         try:
             ds = load_run_dataset(runs[names[0]], TrainConfig.load(runs[names[0]] / "config.json"))
@@ -229,7 +229,7 @@ def figure(scene: str, runs: dict[str, Path], path: Path) -> None:
 
 def write_results(rows: list[dict], out: Path, header: str = "") -> str:
     """results.csv (one row per method x scene) and table.md (per scene, then the mean per method)."""
-    from .runs import atomic_write_text
+    from glint_mi.runs import atomic_write_text
 
     keys = ["method", "scene", "seed", *COLUMNS, "variant", "device"]
     # Round once, to the CSV's 6 digits, and build the table from those values: rounding the raw value to the
@@ -318,7 +318,7 @@ def main(argv=None) -> int:
         print(f"error: unknown method(s) {bad}; choose from {sorted(METHODS)}", file=sys.stderr)
         return 2
     if args.make_data and not list(args.data.glob("*/split.json")):
-        from .dataset.__main__ import main as dataset_main
+        from glint_mi.dataset.__main__ import main as dataset_main
 
         dataset_main(["make", str(args.data), "--scenes", str(args.make_data), "--preset", args.preset])
     try:
@@ -326,9 +326,9 @@ def main(argv=None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    from .config import ConfigError
-    from .optimize import parse_sets
-    from .runs import RunError
+    from glint_mi.config import ConfigError
+    from glint_mi.optimize import parse_sets
+    from glint_mi.runs import RunError
 
     extra = {"iterations": args.iterations, "epochs": 0.0} if args.iterations else {}
     try:
@@ -340,7 +340,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
-    from .machine import summary
+    from glint_mi.machine import summary
 
     jobs = job_list(methods, scenes, seeds, args.out)
     try:
@@ -369,7 +369,7 @@ def main(argv=None) -> int:
         with open(f) as fh:
             curves[f"{f.parent.name} / {f.parent.parent.name}"] = list(csv.DictReader(fh))
     if curves:
-        from .plots import convergence_figure
+        from glint_mi.evaluation.plots import convergence_figure
 
         convergence_figure(curves, args.out / "convergence.png")
         print(f"convergence curves of {len(curves)} run(s): {args.out / 'convergence.png'}")

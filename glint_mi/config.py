@@ -15,10 +15,10 @@ import json
 import math
 from pathlib import Path
 
-from . import conventions as cv
+from glint_mi import conventions as cv
 
 PAPER_ITERS = 60_000.0
-# the weighted terms of the objective (glint_mi.losses.batch_objective), each switched by its w_<name> weight
+# the weighted terms of the objective (glint_mi.training.losses.batch_objective), each switched by its w_<name> weight
 LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "sfm_depth", "normal", "consistency", "distortion", "trans",
               "treg", "plausibility")
 
@@ -76,7 +76,7 @@ class ModelConfig:
 
 @dataclasses.dataclass
 class RenderConfig:
-    """The image model (the integrator's properties, glint_mi.model.integrator_props) and how rays are traced."""
+    """The image model (the integrator's properties, glint_mi.model.files.integrator_props) and how rays are traced."""
 
     max_order: int = 1
     max_hits: int = 256                  # hit budget per ray and pass (the paper: stop at T < 1e-4 "or a budget"); a
@@ -203,7 +203,8 @@ class ScheduleConfig:
 
 @dataclasses.dataclass
 class DensifyConfig:
-    """Densification, pruning and opacity resets (one strategy object, glint_mi.strategy) and the Gaussian budget."""
+    """Densification, pruning and opacity resets (one strategy object, glint_mi.training.strategy) and the Gaussian
+    budget."""
 
     densify_from: float = 0.5 / 60
     densify_until: float = 21 / 60
@@ -228,7 +229,7 @@ class EvalConfig:
     """Evaluation: the resolution, the depth a method reports, and how often."""
 
     eval_full: bool = False              # evaluate at the dataset's full resolution instead of the training one
-    eval_depth: str = "expected"         # the depth a method reports (glint_mi.depth_rules): expected (GLINT, 3DGS),
+    eval_depth: str = "expected"         # the depth a method reports (training.depth_rules): expected (GLINT, 3DGS),
     #                                      median (2DGS, depth_ratio 1) or first_surface (TSGS, with priors/glass)
     eval_every: int = 0                  # > 0: evaluate the test views every this many iterations and at the end
     #                                      (convergence.csv in the run folder; evaluation time is not training time)

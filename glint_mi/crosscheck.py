@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .metrics import angles_deg
+from glint_mi.evaluation.metrics import angles_deg
 
 
 def compare_view(mi_gt: dict, cy: dict, cy_seed1: dict | None, c2w: np.ndarray) -> dict:
@@ -64,7 +64,7 @@ def side_by_side(mi_gt: dict, cy: dict, path: Path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .conventions import linear_to_srgb
+    from glint_mi.conventions import linear_to_srgb
 
     zm, zc = mi_gt["depth"], cy["depth"]
     dz = np.where((zm > 0) & (zc > 0), np.abs(zc - zm) / np.maximum(zm, 1e-9), 0)
@@ -84,9 +84,9 @@ def side_by_side(mi_gt: dict, cy: dict, path: Path, title: str) -> None:
 
 
 def crosscheck(scene_dir: Path) -> dict:
-    from .data import load_dataset
-    from .dataset.cycles_render import read_cycles_exr
-    from .runs import atomic_write_text
+    from glint_mi.data import load_dataset
+    from glint_mi.dataset.cycles_render import read_cycles_exr
+    from glint_mi.runs import atomic_write_text
 
     scene_dir = Path(scene_dir)
     cdir = scene_dir / "cycles"

@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import metrics as M
-from .batch import pixel_rays
-from .data import View
-from .conventions import srgb_to_linear
-from .render import floats
-from .runs import atomic_write_text
+from glint_mi.evaluation import metrics as M
+from glint_mi.training.batch import pixel_rays
+from glint_mi.data import View
+from glint_mi.conventions import srgb_to_linear
+from glint_mi.model.render import floats
+from glint_mi.runs import atomic_write_text
 
 CHUNK = 1 << 16
 
@@ -30,12 +30,12 @@ CHUNK = 1 << 16
 def render_view(integ, view: View, need_direct: bool = False, depth_rule: str = "expected",
                 glass: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Every buffer of one view as [H, W, C] numpy (rays through pixel centres, chunks of 65k rays). ``depth``
-    follows ``depth_rule`` (:mod:`glint_mi.depth_rules`: expected, median, or first_surface with the view's
+    follows ``depth_rule`` (:mod:`glint_mi.training.depth_rules`: expected, median, or first_surface with the view's
     transparency mask ``glass`` [H, W])."""
     import drjit as dr
     import mitsuba as mi
 
-    from . import depth_rules
+    from glint_mi.training import depth_rules
 
     d = pixel_rays(view).astype(np.float32)
     o = view.c2w[:3, 3].astype(np.float32)
@@ -116,12 +116,12 @@ def eval_options(cfg, root) -> dict:
     """``evaluate`` keywords for a run's config: its depth rule and, for first_surface, the masks it reads."""
     if cfg.eval_depth != "first_surface":
         return {"depth_rule": cfg.eval_depth}
-    from .data.priors import load_prior
+    from glint_mi.data.priors import load_prior
 
     def glass_of(view):
         m = load_prior(root, view, "glass")
         if m is None:
-            from .data import DatasetError
+            from glint_mi.data import DatasetError
             raise DatasetError(f"{root}: eval_depth = first_surface (TSGS) needs priors/glass/{view.name}.(npy|png|exr)"
                                f" for the test view '{view.name}' (the transparency mask its depth rule reads).")
         return m
@@ -146,7 +146,7 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
 
     out_dir = Path(out_dir) if (write and out_dir is not None) else None
     per_view, renders, seconds = {}, {}, []
-    from .machine import describe, summary
+    from glint_mi.machine import describe, summary
 
     dev = describe()
     res = {"resolution": [views[0].width, views[0].height], "machine": summary(dev), "variant": dev["variant"],
@@ -210,8 +210,8 @@ def load_run(run: str | Path, full: bool = False, max_hits: int | None = None, c
     """(integrator, dataset, config, train_s) of a finished run folder (its ``model/``); the dataset at the
     training resolution, or with ``full`` at its full resolution; ``max_hits`` and ``components`` as in
     :func:`load_model`."""
-    from .config import TrainConfig
-    from .runs import RunError, load_run_dataset
+    from glint_mi.config import TrainConfig
+    from glint_mi.runs import RunError, load_run_dataset
 
     run = Path(run)
     if not (run / "config.json").exists() or not (run / "model").exists():
@@ -231,10 +231,10 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
     ``benchmarks/bench_render_tradeoff.py``)."""
     import glint_mi
 
-    from .conventions import ROLES
-    from .examples import gaussian_scene_dict
-    from .gaussians import GaussianSet
-    from .model import integrator_props, shape_props
+    from glint_mi.conventions import ROLES
+    from glint_mi.model.examples import gaussian_scene_dict
+    from glint_mi.model.gaussians import GaussianSet
+    from glint_mi.model.files import integrator_props, shape_props
 
     glint_mi.set_variant()
     import mitsuba as mi
@@ -242,7 +242,7 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
     model = Path(run) / "model"
     sets = {r: GaussianSet.load_ply(model / f"{r}.ply") for r in ROLES if (model / f"{r}.ply").exists()}
     if cfg.blend == "refgs" and not (model / "env.npy").exists():  # Ref-GS's directional grid, beside the sets
-        from .runs import RunError
+        from glint_mi.runs import RunError
 
         raise RunError(f"{model / 'env.npy'}: a refgs model needs its directional grid; the run did not "
                        f"finish saving its model - resume it with `python -m glint_mi.optimize --resume {run}`.")
@@ -273,8 +273,8 @@ def main(argv=None) -> int:
         print(f"error: --max-hits {args.max_hits}: give a positive hit budget (the run's is in "
               f"{args.run}/config.json, max_hits)", file=sys.stderr)
         return 2
-    from .data import DatasetError
-    from .runs import RunError
+    from glint_mi.data import DatasetError
+    from glint_mi.runs import RunError
 
     try:
         integ, ds, cfg, train_s = load_run(args.run, full=args.full, max_hits=args.max_hits)

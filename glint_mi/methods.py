@@ -43,7 +43,7 @@ class Method:
     differs: str = ""
 
     def __post_init__(self):
-        from .config import TrainConfig
+        from glint_mi.config import TrainConfig
 
         TrainConfig.from_dict(self.overrides, source=f"method '{self.name}'")  # raises ConfigError, naming the key
 
@@ -126,7 +126,7 @@ TABLE_METHODS = ("3dgs", "2dgs", "pgsr", "envgs", "refgs", "tsgs", "glint")
 
 
 def config_for(method: str, preset: str, variant: str | None = None, **extra):
-    from .config import DEFAULT_VARIANT, ConfigError, TrainConfig
+    from glint_mi.config import DEFAULT_VARIANT, ConfigError, TrainConfig
 
     if method not in METHODS:
         raise ConfigError(f"unknown method '{method}'; use one of {sorted(METHODS)}.")

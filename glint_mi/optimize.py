@@ -5,7 +5,7 @@
     python -m glint_mi.optimize scene.xml --set w_trans=0 --set components=all  # any TrainConfig field
     python -m glint_mi.optimize scene.xml --method 3dgs                       # a baseline (glint_mi.methods)
 
-Prints a metrics table at the end; everything is written under ``--out`` (see glint_mi.train).
+Prints a metrics table at the end; everything is written under ``--out`` (see glint_mi.training.trainer).
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from .config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig
+from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig
 
 
 def parse_sets(items) -> dict:
@@ -36,7 +36,7 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
     if args.config:
         TrainConfig.load(args.config)  # validates, with errors naming the file
         values.update(json.loads(args.config.read_text()))
-    from .methods import METHODS
+    from glint_mi.methods import METHODS
 
     method = getattr(args, "method", None) or "glint"
     for key in ("components", "max_order"):  # the scene's, unless the method fixes it (3dgs: the interface alone)
@@ -50,7 +50,7 @@ def build_config(args, scene_props: dict | None = None) -> TrainConfig:
     preset = args.preset or values.pop("preset", None) or "quick"
     variant = args.variant or values.pop("variant", None) or DEFAULT_VARIANT
     values.pop("preset", None), values.pop("variant", None)
-    from .methods import config_for
+    from glint_mi.methods import config_for
 
     return config_for(method, preset, variant, **values)
 
@@ -74,13 +74,13 @@ def main(argv=None) -> int:
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)
 
-    from . import metrics as M
-    from .data import DatasetError
-    from .data.priors import PriorError
-    from .gaussians import GaussianDataError
-    from .scene import SceneError, read_scene
-    from .runs import RunError, check_run_folder
-    from .train import Trainer
+    from glint_mi.evaluation import metrics as M
+    from glint_mi.data import DatasetError
+    from glint_mi.data.priors import PriorError
+    from glint_mi.model.gaussians import GaussianDataError
+    from glint_mi.scene import SceneError, read_scene
+    from glint_mi.runs import RunError, check_run_folder
+    from glint_mi.training.trainer import Trainer
 
     try:
         if args.resume:
@@ -115,7 +115,7 @@ def main(argv=None) -> int:
               + f" (why: above, and in {run}/report.json)")
     print(f"trained {res['iterations']} iterations in {res['train_s']:.1f} s -> {run}")
     if not args.no_eval and trainer.ds.test_views:
-        from .evaluate import evaluate
+        from glint_mi.evaluate import evaluate
 
         try:
             out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"],

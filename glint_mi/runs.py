@@ -75,7 +75,7 @@ def hold_run(run: Path):
 def load_run_dataset(run_dir: Path, cfg, full: bool = False, log=None):
     """The dataset of a run folder, read as the run read it (``run.json``), at the training resolution or, with
     ``full``, at its full resolution."""
-    from .data import load_dataset
+    from glint_mi.data import load_dataset
 
     info = json.loads((Path(run_dir) / "run.json").read_text())
     opts = {**{"missing": "error"}, **info.get("dataset_options", {}), "downscale": 1 if full else cfg.downscale}

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import conventions as cv
-from .data import Dataset, DatasetError, load_dataset
-from .gaussians import GaussianSet
+from glint_mi import conventions as cv
+from glint_mi.data import Dataset, DatasetError, load_dataset
+from glint_mi.model.gaussians import GaussianSet
 
 
 class SceneError(ValueError):
@@ -199,10 +199,10 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
     """The dataset's SfM points, or points triangulated with pycolmap from its images and known poses (cached under
     ``$GLINT_CACHE``/sfm, with their tracks, which then become the dataset's ``sparse`` model). Returns (xyz, rgb,
     report); the report says where the points came from, or in one line why there are none."""
-    from .data.images import image_size
-    from .data.undistort import cache_root, digest, file_key
-    from .dataset.cameras import Camera, write_colmap_text
-    from .dataset.sfm import triangulate_known_poses
+    from glint_mi.data.images import image_size
+    from glint_mi.data.undistort import cache_root, digest, file_key
+    from glint_mi.dataset.cameras import Camera, write_colmap_text
+    from glint_mi.dataset.sfm import triangulate_known_poses
 
     none = (np.zeros((0, 3)), np.zeros((0, 3), np.uint8))
     if ds.points is not None and len(ds.points):
@@ -222,7 +222,7 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
     key = digest(SFM_VERSION, [(c.name, file_key(f), c.K.tolist(), c.c2w.tolist()) for f, c in zip(files, cams)])
     folder = cache_root() / "sfm" / key / "sparse" / "0"
     if (folder / "points3D.txt").exists():
-        from .data.colmap import read_text
+        from glint_mi.data.colmap import read_text
 
         _, _, xyz, rgb, _, _ = read_text(folder)
         rep = {"source": "triangulated (cached)", "points": int(len(xyz)), "cache": str(folder)}
@@ -250,7 +250,7 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
             # matching is multi-threaded, and two triangulations of the same images differ by a few points)
             import shutil
 
-            from .data.colmap import read_text
+            from glint_mi.data.colmap import read_text
 
             shutil.rmtree(tmp, ignore_errors=True)
             _, _, xyz, rgb, _, _ = read_text(folder)
@@ -285,7 +285,7 @@ def grid_points(lo, hi, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
 def ray_points(ds: Dataset, n: int, extent: float, rng: np.random.Generator, depth_range=None):
     """``n`` points on random training-pixel rays at random depths (``depth_range``, default [0.2, 4] x extent),
     with the pixel's colour: a random initialisation restricted to what the cameras see (no SfM points)."""
-    from .batch import pixel_rays
+    from glint_mi.training.batch import pixel_rays
 
     views = ds.train_views or ds.views
     vi = rng.integers(0, len(views), n)
@@ -370,7 +370,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(ds.summary(), file=sys.stderr)
-    from .data.priors import check_priors
+    from glint_mi.data.priors import check_priors
 
     problems = check_priors(ds.root, ds.train_views)
     if problems:

@@ -49,7 +49,7 @@ import mitsuba as mi
 import numpy as np
 
 from glint_mi import conventions as cv
-from glint_mi.gaussians import SHELL_EXTENT, GaussianDataError, GaussianSet
+from glint_mi.model.gaussians import SHELL_EXTENT, GaussianDataError, GaussianSet
 
 
 @dataclasses.dataclass

@@ -10,7 +10,7 @@ import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
 from glint_mi import native  # noqa: E402
-from glint_mi.gaussians import GaussianSet  # noqa: E402
+from glint_mi.model.gaussians import GaussianSet  # noqa: E402
 from glint_mi_plugins.glint_gaussians import make_shape  # noqa: E402
 
 

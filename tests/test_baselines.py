@@ -17,10 +17,10 @@ import pytest
 import mitsuba as mi
 
 from conftest import camera, make_integrator, random_set, rays, to_np
-from glint_mi.gaussians import GaussianSet
+from glint_mi.model.gaussians import GaussianSet
 from glint_mi.config import TrainConfig
 from glint_mi.methods import config_for
-from glint_mi.render import render_buffers
+from glint_mi.model.render import render_buffers
 from glint_mi_plugins.glint_gaussians import make_shape
 from test_inside_origins import brute_force
 

@@ -33,15 +33,15 @@ def test_demo_runs_on_bundled_scene(tmp_path):
     assert buf.shape[:2] == (54, 96) and np.isfinite(buf).all()
     # the trained model is a Mitsuba scene that loads and renders on its own
     import glint_mi
-    from glint_mi.render import render_buffers
+    from glint_mi.model.render import render_buffers
     b = render_buffers(glint_mi.load_file(str(run / "model" / "scene.xml")))
     assert b["rgb"].shape == (54, 96, 3) and np.isfinite(b["rgb"]).all()
 
 
 def test_bundled_scene_matches_its_generator(tmp_path):
     """scenes/display_case is examples.display_case_sets(4000, 0) written by examples.write_scene."""
-    from glint_mi import examples
-    from glint_mi.gaussians import GaussianSet
+    from glint_mi.model import examples
+    from glint_mi.model.gaussians import GaussianSet
     sets = examples.display_case_sets(4000, 0)
     for role, s in sets.items():
         np.testing.assert_array_equal(GaussianSet.load_ply(ROOT / "scenes" / "display_case" / f"{role}.ply").means, s.means)

@@ -15,7 +15,7 @@ import glint_mi
 from glint_mi.data import DatasetError, View, load_dataset
 from glint_mi.conventions import MI_TO_COLMAP, qvec_to_rotmat, rotmat_to_qvec
 from glint_mi.dataset.generate import Preset, make_scene
-from glint_mi.exr import read_gt_exr
+from glint_mi.data.exr import read_gt_exr
 from glint_mi.dataset.room import _overlap, build_room
 
 from conftest import needs_pycolmap
@@ -83,7 +83,7 @@ def test_scene_xml_rerenders_and_cameras_round_trip(scene_dir):
     # planar depth in the EXR equals z of the back-projected surface point in COLMAP camera coordinates
     v = ds_colmap.views[2]
     gt = v.load_gt()
-    from glint_mi.render import camera_rays
+    from glint_mi.model.render import camera_rays
     pix = np.array([[10, 5], [24, 13], [40, 20]])
     ray, _ = camera_rays(scene.sensors()[2], pix)
     si = scene.ray_intersect(ray)
@@ -100,7 +100,7 @@ def test_principal_point_offset_matches_K():
     K = np.array([[40.0, 0, 30.0], [0, 40.0, 14.0], [0, 0, 1]])
     v = View("x", Path("x.png"), 48, 27, K, np.eye(4))
     sensor = mi.load_dict(v.sensor_dict())
-    from glint_mi.render import camera_rays
+    from glint_mi.model.render import camera_rays
     pix = np.array([[3, 2], [30, 14], [45, 25]])
     ray, _ = camera_rays(sensor, pix)
     d_mi = np.array(ray.d).T
@@ -184,7 +184,7 @@ def test_loader_errors_name_file_and_fix(scene_dir, tmp_path):
 
 
 def test_nan_in_gt_exr_is_reported(scene_dir, tmp_path):
-    from glint_mi.exr import write_gt_exr
+    from glint_mi.data.exr import write_gt_exr
     ds = load_dataset(scene_dir)
     v = ds.views[1]
     gt = v.load_gt()

@@ -1,4 +1,4 @@
-"""The depth each method reports (glint_mi.depth_rules): 2DGS's median depth and TSGS's first-surface depth.
+"""The depth each method reports (glint_mi.training.depth_rules): 2DGS's median depth and TSGS's first-surface depth.
 
 Hand-made hit lists check TSGS's rule case by case (glass in front of a wall, two candidate windows, an opaque-mask
 pixel, background); on a rendered stack of surfels the numpy median equals the integrator's own median composite, and
@@ -11,8 +11,8 @@ import drjit as dr
 import mitsuba as mi
 
 from conftest import make_integrator, rays
-from glint_mi import depth_rules as R
-from glint_mi.gaussians import GaussianSet
+from glint_mi.training import depth_rules as R
+from glint_mi.model.gaussians import GaussianSet
 
 
 def _pad(rows, k=8):
@@ -79,7 +79,7 @@ def _interface_transmittance(integ, view, pixels):
     """For the selected pixels of ``view``: the interface pass's running transmittance [n, K + 1] in float64, from
     the pass's hit list (1 before the first hit), and the rendered alpha."""
     from glint_mi.evaluate import pixel_rays
-    from glint_mi.render import floats
+    from glint_mi.model.render import floats
 
     dd = pixel_rays(view).astype(np.float32)[pixels.reshape(-1)]
     o, f = view.c2w[:3, 3].astype(np.float32), view.c2w[:3, 2]
@@ -101,7 +101,7 @@ def test_evaluation_reports_each_methods_depth(tmp_path):
     from glint_mi.evaluate import evaluate
     from glint_mi.scene import read_scene
     from glint_mi.evaluate import eval_options
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
 
     spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
     tr = Trainer(tmp_path / "run", TrainConfig.for_preset("tiny", iterations=60), scene=spec, log=lambda *a, **k: None)

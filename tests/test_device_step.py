@@ -1,5 +1,5 @@
 """update: device — the chain rule, the densification statistic, selective Adam and the packing on Dr.Jit arrays
-equal the host reference (glint_mi.optim.raw_gradients + Adam.step, GaussianSet.to_mitsuba) within float32
+equal the host reference (glint_mi.training.optim.raw_gradients + Adam.step, GaussianSet.to_mitsuba) within float32
 rounding; a trainer with either update trains the same."""
 import drjit as dr
 import mitsuba as mi
@@ -12,10 +12,10 @@ glint_mi.set_variant()
 
 from conftest import LLVM  # noqa: E402
 
-from glint_mi.device_step import DeviceUpdate  # noqa: E402
-from glint_mi.gaussians import GaussianSet  # noqa: E402
-from glint_mi.optim import RAW_FIELDS, Adam, raw_gradients  # noqa: E402
-from glint_mi.strategy import Strategy  # noqa: E402
+from glint_mi.training.device_step import DeviceUpdate  # noqa: E402
+from glint_mi.model.gaussians import GaussianSet  # noqa: E402
+from glint_mi.training.optim import RAW_FIELDS, Adam, raw_gradients  # noqa: E402
+from glint_mi.training.strategy import Strategy  # noqa: E402
 
 LRS = {"means": 1.6e-4, "log_scales": 5e-3, "quats_wxyz": 1e-3, "logit_opacity": 0.05, "sh": 2.5e-3,
        "sh_rest": 1.25e-4, "logit_specular": 0.01, "logit_transparency": 0.05}

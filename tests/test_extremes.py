@@ -7,7 +7,7 @@ import drjit as dr
 import mitsuba as mi
 
 from conftest import make_integrator, rays, to_np
-from glint_mi.gaussians import GaussianSet
+from glint_mi.model.gaussians import GaussianSet
 
 
 def _finite_trace(sets, kernels, origins, dirs, **props):

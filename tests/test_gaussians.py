@@ -4,7 +4,7 @@ from numpy.lib.recfunctions import repack_fields
 import pytest
 
 from glint_mi import conventions as cv
-from glint_mi.gaussians import GaussianDataError, GaussianSet
+from glint_mi.model.gaussians import GaussianDataError, GaussianSet
 
 
 def _set(rng, n=50, deg=2):

@@ -67,7 +67,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_no_import_cycle():
     graph = import_graph()
-    assert len(graph) > 30 and "glint_mi.train" in graph["glint_mi.optimize"]
+    assert len(graph) > 30 and "glint_mi.training.trainer" in graph["glint_mi.optimize"]
     assert cycles(graph) == []
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]  # the detector finds one
 
@@ -75,6 +75,30 @@ def test_no_import_cycle():
 def test_readers_do_not_import_the_generator():
     graph = import_graph()
     wrong = sorted((m, d) for m, deps in graph.items() for d in deps
-                   if (m.startswith("glint_mi.data.") or m in ("glint_mi.data", "glint_mi.batch"))
+                   if (m.startswith("glint_mi.data.") or m in ("glint_mi.data", "glint_mi.training.batch"))
                    and d.startswith("glint_mi.dataset"))
     assert wrong == []
+
+
+# The package's top level: the commands (python -m glint_mi.X) and what every part shares. A library module goes in
+# the folder of what it is for (data, dataset, model, training, evaluation, native).
+TOP_LEVEL = {"__init__", "_llvm", "setup_llvm", "benchmark", "crosscheck", "demo", "evaluate", "optimize", "scene",
+             "config", "methods", "conventions", "machine", "runs"}
+FOLDERS = {"data", "dataset", "model", "training", "evaluation", "native"}
+
+
+def test_layout_shows_the_architecture():
+    top = {p.stem for p in PKG.glob("*.py")}
+    folders = {p.name for p in PKG.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert top == TOP_LEVEL, f"new top-level modules {sorted(top - TOP_LEVEL)} belong in one of {sorted(FOLDERS)}"
+    assert folders == FOLDERS, sorted(folders ^ FOLDERS)
+    for folder in FOLDERS:  # each folder says what it holds
+        assert ast.get_docstring(ast.parse((PKG / folder / "__init__.py").read_text())), folder
+    graph = import_graph()
+    # the folders depend downwards: the readers import no model, training or evaluation; the metrics, analyses and
+    # plots import no training (the trade-off study trains its runs, so it may)
+    readers = [m for m in graph if m == "glint_mi.data" or m.startswith("glint_mi.data.")]
+    assert not {d for m in readers for d in graph[m]
+                if d.startswith(("glint_mi.model", "glint_mi.training", "glint_mi.evaluation"))}
+    leaves = [m for m in graph if m.startswith("glint_mi.evaluation.") and not m.endswith(".tradeoff")]
+    assert not {d for m in leaves for d in graph[m] if d.startswith("glint_mi.training")}

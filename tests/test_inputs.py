@@ -126,7 +126,7 @@ def test_partial_and_broken_priors_are_listed_one_line_each(tiny, tmp_path):
     assert any(names[2] in p and "5" in p for p in problems)  # the size, named
     r, errors = _cli("glint_mi.scene", cap)
     assert r.returncode == 2 and len(errors) == 3, r.stderr
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
 
     (tmp_path / "scene.xml").write_text(scene_xml(cap))
     with pytest.raises(PriorError, match="no normal map"):

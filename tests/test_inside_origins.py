@@ -16,7 +16,7 @@ import drjit as dr
 import mitsuba as mi
 
 from conftest import central_difference, make_integrator, rays, to_np
-from glint_mi.gaussians import GaussianSet
+from glint_mi.model.gaussians import GaussianSet
 
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1 / 255, 0.99, 1e-4
 

@@ -12,9 +12,9 @@ import drjit as dr
 import mitsuba as mi
 
 from conftest import camera, central_difference, make_integrator, random_set, rays, to_np
-from glint_mi import examples
-from glint_mi.gaussians import GaussianSet
-from glint_mi.render import render_buffers
+from glint_mi.model import examples
+from glint_mi.model.gaussians import GaussianSet
+from glint_mi.model.render import render_buffers
 from glint_mi_plugins.glint_gaussians import make_shape
 
 
@@ -495,7 +495,7 @@ def test_tracing_selects_sets_for_a_block_only():
     integrator as it found it."""
     import pytest
 
-    from glint_mi.examples import gaussian_scene_dict
+    from glint_mi.model.examples import gaussian_scene_dict
 
     rng = np.random.default_rng(0)
     sets = {r: random_set(rng, 8) for r in ("interface", "transmission", "reflection")}

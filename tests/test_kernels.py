@@ -14,7 +14,7 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from glint_mi import examples
+from glint_mi.model import examples
 
 from conftest import llvm_only, make_integrator, rays
 

@@ -6,7 +6,8 @@ import pytest
 import drjit as dr
 import mitsuba as mi
 
-from glint_mi.losses import bce, depth_fit, depth_loss, depth_loss_aligned, normal_loss, plausibility_weight, transparency_masks
+from glint_mi.training.losses import (bce, depth_fit, depth_loss, depth_loss_aligned, normal_loss, plausibility_weight,
+                                      transparency_masks)
 
 
 def _batch(rng, n_views=3, per=200):
@@ -153,7 +154,7 @@ def test_transparency_masks_ignore_faint_layers():
 
 
 def test_transparency_off_and_on_glass_metrics():
-    from glint_mi.metrics import view_metrics
+    from glint_mi.evaluation.metrics import view_metrics
     H, W = 6, 8
     glass = np.zeros((H, W))
     glass[:, :2] = 1
@@ -204,7 +205,7 @@ def test_see_through_gain_compares_the_two_explanations():
     """gain = clip((e_0 - e_1) / e_0, 0, 1): 1 where the transmitted colour alone fits and the interface's does not,
     0 where the interface fits; a blend of two fits does not count as evidence."""
     from types import SimpleNamespace
-    from glint_mi.losses import see_through_gain
+    from glint_mi.training.losses import see_through_gain
     b = SimpleNamespace(rgb=_colours([[0.5, 0.5, 0.5], [0.2, 0.2, 0.2], [0.4, 0.4, 0.4]]))
     out = {"weights": (None, mi.Float(np.zeros(3)), None), "reflection": _colours(np.zeros((3, 3))),
            "interface": _colours([[0.9, 0.9, 0.9], [0.2, 0.2, 0.2], [0.5, 0.5, 0.5]]),
@@ -220,7 +221,7 @@ def test_t_gate_reads_the_opaque_votes_it_is_told(votes):
     background) no longer closes the gate, HighA still does; L_trans's own opaque mask keeps every vote."""
     from types import SimpleNamespace
     from glint_mi.config import TrainConfig
-    from glint_mi.losses import batch_transparency_masks
+    from glint_mi.training.losses import batch_transparency_masks
     p = 8
     n = p * p
     albedo = np.full((n, 3), 0.02)
@@ -271,7 +272,7 @@ def test_device_patch_masks_equal_the_numpy_definition(albedo, cue, alphas):
     rules in numpy / scipy on the [P, p, p] stack: the same masks pixel for pixel, weights within float32 rounding;
     random depths, alphas, albedo, base colours, view angles across the 70-80 degree ramp and SfM cues on 64
     patches; and transparency_masks (the image API) gives the same on the stack."""
-    from glint_mi.losses import block_transparency_masks
+    from glint_mi.training.losses import block_transparency_masks
     rng = np.random.default_rng(4)
     P, p = 64, 8
     shape = (P, 2, 2)  # drawn per 4 x 4 block, so that something survives the erosion

@@ -9,8 +9,8 @@ import pytest
 
 import mitsuba as mi
 
-from glint_mi.meshes import glass_room_dict
-from glint_mi.render import render_buffers
+from glint_mi.model.mesh_room import glass_room_dict
+from glint_mi.model.render import render_buffers
 
 
 def _pair(glass, spp=64):

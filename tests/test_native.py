@@ -244,7 +244,7 @@ def test_a_changed_set_is_traced_as_changed(rng, traversal):
     """After a push through mi.traverse (moved and rescaled Gaussians, as a training step sends them), both
     traversals see the new set: the render equals a freshly built integrator's (the Mitsuba BVH is rebuilt only
     when the bvh traversal needs it, the native shells on the next query)."""
-    from glint_mi.render import render_buffers
+    from glint_mi.model.render import render_buffers
     from glint_mi_plugins.glint_gaussians import make_shape, pack
 
     a, b = random_set(rng, 300), random_set(rng, 300, center=(0.3, 0, 0))

@@ -8,8 +8,8 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from glint_mi import losses as L
-from glint_mi.batch import patch_neighbours
+from glint_mi.training import losses as L
+from glint_mi.training.batch import patch_neighbours
 from glint_mi.config import TrainConfig
 
 
@@ -102,7 +102,7 @@ def test_stage_schedule(variant):
     """Which sets are traced and trained and which terms are on, iteration by iteration, for 600 iterations."""
     from types import SimpleNamespace
 
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", variant, iterations=600, sh_degree=2)
     fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0, "transmission": 0, "reflection": 0}, dropped={},
@@ -153,9 +153,9 @@ def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
     import drjit as dr
     import mitsuba as mi
 
-    from glint_mi import losses as L
+    from glint_mi.training import losses as L
     from glint_mi.methods import config_for
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
 
     c = config_for("2dgs", "tiny", iterations=300)
     assert (c.w_dist, c.dist_from, c.w_consistency, c.consistency_from, c.consistency_depth) == \
@@ -192,7 +192,7 @@ def test_whole_image_depth_fit(tmp_path, disparity):
     that is exactly w D + q (or w / D + q for a disparity prior) gives back w and q."""
     from PIL import Image
 
-    from glint_mi.batch import RayBank
+    from glint_mi.training.batch import RayBank
     from glint_mi.data import load_dataset
     from glint_mi.dataset.cameras import Camera, write_transforms_json
 
@@ -231,7 +231,7 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     from types import SimpleNamespace
 
     from glint_mi.scene import read_scene
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, components="interface")
     fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0}, dropped={},
@@ -273,7 +273,7 @@ def test_components_auto_decision_on_the_measured_pair(cover, share, kept):
     (mean since it started) alone: the pair measured on room 7301 with and without its glass (docs/decisions.md)
     falls on either side of the default threshold, and a short run whose set still carries little of the image
     energy keeps its glass (the energy share, which grows with the budget, used to drop it)."""
-    from glint_mi.components import ComponentsPolicy
+    from glint_mi.training.components import ComponentsPolicy
 
     c = TrainConfig.for_preset("bench", iterations=1000)
     policy = ComponentsPolicy(c)
@@ -296,7 +296,7 @@ def test_prior_layer_nearer_in_the_objective(tmp_path):
     from pathlib import Path
 
     from glint_mi.scene import read_scene
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", iterations=200, components="all", prior_layer="interface")
     spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
@@ -357,7 +357,7 @@ def test_device_statistics_equal_numpy_and_are_read_only_when_asked(tmp_path):
     are reduced on the device: equal to their float64 numpy definitions within float32 rounding (rel 1e-4), and with
     read=False nothing is a float until read_values; a training run reads them back when it logs, as floats."""
     from glint_mi.scene import read_scene
-    from glint_mi.train import Trainer, budget_full
+    from glint_mi.training.trainer import Trainer, budget_full
     from pathlib import Path
 
     spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))

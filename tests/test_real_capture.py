@@ -170,7 +170,7 @@ def test_estimator_priors_conventions(tmp_path):
     OpenGL normals in [0,1]-encoded 16-bit PNG, sRGB albedo PNG; a map of another size is refused naming it."""
     from PIL import Image
 
-    from glint_mi.batch import RayBank
+    from glint_mi.training.batch import RayBank
     from glint_mi.data.priors import PriorError, load_prior
     from glint_mi.dataset.cameras import Camera, write_transforms_json
 
@@ -214,7 +214,7 @@ def test_disparity_prior_depth_loss_fits_inverse_depth():
     import drjit as dr
     import mitsuba as mi
 
-    from glint_mi import losses as L
+    from glint_mi.training import losses as L
 
     D = np.linspace(1.0, 4.0, 64)
     P = 0.7 / D + 0.2
@@ -244,7 +244,7 @@ def test_sfm_failure_is_one_line_in_the_report(tmp_path):
     from glint_mi.config import TrainConfig
     from glint_mi.dataset.cameras import Camera, look_at, write_transforms_json
     from glint_mi.scene import read_scene, scene_xml
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
 
     folder = tmp_path / "flat"
     (folder / "images").mkdir(parents=True)

@@ -23,7 +23,7 @@ import pytest
 
 from conftest import BITWISE, central_difference, make_integrator, random_set, rays, to_np
 from glint_mi.conventions import linear_to_srgb
-from glint_mi.gaussians import GaussianSet
+from glint_mi.model.gaussians import GaussianSet
 from glint_mi.methods import config_for
 from glint_mi_plugins.glint_env import DirectionalGrid, srgb
 from test_inside_origins import brute_force
@@ -187,7 +187,7 @@ def test_refgs_gradients_match_finite_differences(rng):
 def test_refgs_trains_resumes_and_saves_its_grid(tmp_path, monkeypatch):
     from glint_mi.dataset.generate import Preset, make_scene
     from glint_mi.scene import read_scene, scene_xml
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
     from test_train import _interrupt_at
 
     room = tmp_path / "room"

@@ -11,17 +11,17 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from glint_mi import losses as L
-from glint_mi.batch import patch_neighbours, pixel_rays
+from glint_mi.training import losses as L
+from glint_mi.training.batch import patch_neighbours, pixel_rays
 from glint_mi.config import ConfigError, TrainConfig
 from glint_mi.data import DatasetError, load_dataset
 from glint_mi.dataset.generate import Preset, make_scene
-from glint_mi.gaussians import GaussianSet
-from glint_mi.render import camera_rays
+from glint_mi.model.gaussians import GaussianSet
+from glint_mi.model.render import camera_rays
 from glint_mi.scene import SceneError, read_scene, scene_xml
-from glint_mi.optim import RAW_FIELDS, Adam, raw_gradients
-from glint_mi.strategy import Strategy
-from glint_mi.train import Trainer
+from glint_mi.training.optim import RAW_FIELDS, Adam, raw_gradients
+from glint_mi.training.strategy import Strategy
+from glint_mi.training.trainer import Trainer
 
 from conftest import BITWISE, KBUFFER, LLVM, tiny_cfg
 
@@ -43,7 +43,7 @@ def test_downscale_bank(room, tmp_path):
     """downscale = 2: the dataset's views have 2 x 2 fine-pixel blocks as pixels: rays through the blocks' centres,
     photos and priors block means; a trainer with it trains and evaluates at that resolution (eval_full: at the
     dataset's)."""
-    from glint_mi.batch import RayBank
+    from glint_mi.training.batch import RayBank
 
     ds, half = load_dataset(room), load_dataset(room, downscale=2)
     fine, coarse = RayBank(ds.train_views, room), RayBank(half.train_views, room)
@@ -369,7 +369,7 @@ def test_cli_scene_optimize_evaluate(room, tmp_path):
     m = json.loads((run / "metrics.json").read_text())["metrics"]
     # the initialisation's metrics, from the same scene: trained must beat them
     from glint_mi.evaluate import evaluate
-    from glint_mi.train import Trainer
+    from glint_mi.training.trainer import Trainer
     init = Trainer(tmp_path / "init", tiny_cfg(), scene=read_scene(scene), log=lambda *a: None)
     m0 = evaluate(init.integ_for_eval(), init.ds.test_views, write=False)["metrics"]
     # (metric depth is not recovered at this size without SfM points: AbsRel is reported, not asserted; the
@@ -649,7 +649,7 @@ def test_depth_prior_alignment_of_a_shallow_view(room, rng):
     depth, so the fit recovers the view's scale."""
     import json
 
-    from glint_mi.batch import RayBank, pixel_rays
+    from glint_mi.training.batch import RayBank, pixel_rays
     ds = load_dataset(room)
     v = ds.train_views[0]
     bank = RayBank([v], room)
@@ -709,7 +709,7 @@ def test_depth_prior_alignment_to_sfm_points(room, rng):
     with a third of them hidden behind surfaces (outliers); the fitted (w, q) reach the batch."""
     import json
 
-    from glint_mi.batch import RayBank, pixel_rays
+    from glint_mi.training.batch import RayBank, pixel_rays
     ds = load_dataset(room)
     bank = RayBank(ds.train_views, room)
     pts = []
@@ -745,7 +745,7 @@ def test_device_batch_equals_the_host_batch(room, rng):
     (NaN) included; its arrays follow a replaced depth alignment, cue and SfM depth."""
     import dataclasses
 
-    from glint_mi.batch import RayBank, to_device
+    from glint_mi.training.batch import RayBank, to_device
 
     ds = load_dataset(room)
     bank = RayBank(ds.train_views, room)
@@ -775,8 +775,8 @@ def test_sfm_see_through_cue(room, rng):
     reaches the batch and gates the L_trans masks; the trainer builds it when there is no albedo prior."""
     import json
 
-    from glint_mi.batch import RayBank, pixel_rays
-    from glint_mi.losses import transparency_masks
+    from glint_mi.training.batch import RayBank, pixel_rays
+    from glint_mi.training.losses import transparency_masks
 
     ds = load_dataset(room)
     bank = RayBank(ds.train_views, room)
@@ -834,7 +834,7 @@ def test_see_through_cue_point_votes(room):
     (the prior saw the pane there, and saw through the glass in the others) is seen through in all of them at
     cue_point_share 0.2, in one only with view votes, in none at a share above its own; a point on the surface in
     every view stays opaque."""
-    from glint_mi.batch import RayBank
+    from glint_mi.training.batch import RayBank
 
     bank = RayBank(load_dataset(room).train_views, room)
     a, b = np.array([[1.0, 2.0, 3.0]]), np.array([[-1.0, 0.5, 2.0]])
@@ -895,7 +895,7 @@ def test_tsgs_glass_masks_from_a_segmenter_or_ground_truth(room, tmp_path):
     kept), ``gt`` the ground-truth glass; a view without its mask is refused naming the folder, before training."""
     import shutil
 
-    from glint_mi.batch import RayBank
+    from glint_mi.training.batch import RayBank
     from glint_mi.methods import config_for
     ds_root = tmp_path / "room"
     shutil.copytree(room, ds_root)
@@ -927,7 +927,7 @@ def test_hit_budget_share_is_measured_and_warned(rng):
     import types
 
     from conftest import make_integrator, rays
-    from glint_mi.train import budget_full
+    from glint_mi.training.trainer import budget_full
 
     n = 100
     surfels = GaussianSet.from_activated(np.c_[np.zeros((n, 2)), np.linspace(1.0, 3.0, n)],
@@ -963,7 +963,7 @@ def test_glass_cue_rule(trans_cue, albedo, cue, kept):
     prior (the paper's masks), or with trans_cue auto (the default) also the SfM see-through cue; the paper's depth
     gap alone (no priors: a phone capture) is none, whatever trans_cue says (until 2026-11-25 trans_cue none skipped
     the check)."""
-    from glint_mi.components import ComponentsPolicy
+    from glint_mi.training.components import ComponentsPolicy
 
     cfg = TrainConfig.for_preset("tiny", components="auto", trans_cue=trans_cue, no_glass="glint")
     policy = ComponentsPolicy(cfg)
@@ -1095,7 +1095,8 @@ def test_batches_over_the_list_cap_retrace_with_the_same_gradients(room, tmp_pat
 
 def test_one_road_from_config_to_integrator(room, tmp_path):
     """The trainer's integrator, evaluate.load_model's and the saved model/scene.xml loaded by Mitsuba are configured
-    alike from the run's config (glint_mi.model): hit budget, order, blend, traversal, kernel and shells; before, the
+    alike from the run's config (glint_mi.model.files): hit budget, order, blend, traversal, kernel and shells;
+    before, the
     saved scene and load_model dropped the traversal."""
     import glint_mi
     from glint_mi.evaluate import load_model

@@ -16,9 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DatasetError
-from .frames import Frame
-from .images import block_mean, check_decodable, decode, fit_to, image_size  # noqa: F401 (block_mean re-exported)
+from glint_mi.data.errors import DatasetError
+from glint_mi.data.frames import Frame
+from glint_mi.data.images import (block_mean, check_decodable, decode, fit_to,  # noqa: F401 (block_mean re-exported)
+                                  image_size)
 
 MISSING = ("error", "skip")
 
@@ -44,7 +45,7 @@ class View:
         one, else 0 = invalid; glass the covered fraction, which the metrics threshold at 0.5)."""
         if self.gt_path is None:
             return None
-        from ..exr import read_gt_exr
+        from glint_mi.data.exr import read_gt_exr
 
         ch = read_gt_exr(self.gt_path)
         need = ["R", "G", "B", "Z", "N.X", "N.Y", "N.Z", "T"]
@@ -114,8 +115,8 @@ class Dataset:
     def observations(self) -> dict[str, tuple[np.ndarray, np.ndarray]] | None:
         """The SfM tracks (:func:`.colmap.read_observations`) in this dataset's views' pixels: undistorted where
         the camera was, divided by ``downscale``. None without a model holding tracks."""
-        from .colmap import read_observations
-        from .undistort import undistort_points
+        from glint_mi.data.colmap import read_observations
+        from glint_mi.data.undistort import undistort_points
 
         if self.sparse is None:
             return None
@@ -167,8 +168,8 @@ def load_dataset(root: str | Path, downscale: int = 1, missing: str = "error", c
     ``downscale`` k: every view at 1/k of its full resolution (area filter; intrinsics scaled, rays through the
     centres of k x k blocks); ``missing``: ``error`` (default) lists every frame whose image is missing, ``skip``
     drops them (noted); ``check_images``: decode every image now (errors name the file)."""
-    from . import colmap, transforms
-    from .undistort import colmap_camera, distortion_shift, undistort_frames
+    from glint_mi.data import colmap, transforms
+    from glint_mi.data.undistort import colmap_camera, distortion_shift, undistort_frames
 
     log = log or (lambda *a: None)
     root = Path(root)
@@ -274,6 +275,6 @@ def load_dataset(root: str | Path, downscale: int = 1, missing: str = "error", c
 def read_observations(root: str | Path):
     """The SfM tracks of the COLMAP model of a dataset folder (``sparse/0`` or ``sparse``), keyed by image stem, in
     that model's own pixels; None without one (see :meth:`Dataset.observations` for a loaded dataset's views)."""
-    from .colmap import model_folder, read_observations as read
+    from glint_mi.data.colmap import model_folder, read_observations as read
 
     return read(model_folder(Path(root)))

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import MI_TO_COLMAP, qvec_to_rotmat
-from .errors import DatasetError
-from .frames import Frame
-from .images import find_image
+from glint_mi.conventions import MI_TO_COLMAP, qvec_to_rotmat
+from glint_mi.data.errors import DatasetError
+from glint_mi.data.frames import Frame
+from glint_mi.data.images import find_image
 
 CAMERA_MODELS = {0: ("SIMPLE_PINHOLE", 3), 1: ("PINHOLE", 4), 2: ("SIMPLE_RADIAL", 4), 3: ("RADIAL", 5),
                  4: ("OPENCV", 8), 5: ("OPENCV_FISHEYE", 8), 6: ("FULL_OPENCV", 12), 7: ("FOV", 5),

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DatasetError
+from glint_mi.data.errors import DatasetError
 
 
 @dataclasses.dataclass

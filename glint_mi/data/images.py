@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DatasetError
+from glint_mi.data.errors import DatasetError
 
 # tried, in this order, when a camera file names an image without its extension (COLMAP and NeRF files do both)
 COMMON_EXTS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".bmp", ".exr")

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DatasetError
-from .images import fit_to
+from glint_mi.data.errors import DatasetError
+from glint_mi.data.images import fit_to
 
 KINDS = ("depth", "normal", "albedo", "glass")  # glass: a segmentation model's glass mask in [0, 1] (TSGS's masks)
 EXTS = (".npy", ".exr", ".png", ".tif", ".tiff")

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import MI_TO_GL
-from .errors import DatasetError
-from .frames import Frame
-from .images import find_image, image_size
+from glint_mi.conventions import MI_TO_GL
+from glint_mi.data.errors import DatasetError
+from glint_mi.data.frames import Frame
+from glint_mi.data.images import find_image, image_size
 
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
 

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DatasetError
-from .images import decode
+from glint_mi.data.errors import DatasetError
+from glint_mi.data.images import decode
 
 VERSION = 1  # bump when the undistorted output would change for the same input
 PINHOLE_MODELS = ("PINHOLE", "SIMPLE_PINHOLE")

@@ -64,13 +64,13 @@ def main(argv=None) -> int:
     tr.add_argument("scene", type=Path)
     args = ap.parse_args(argv)
     if args.cmd == "tracks":
-        from .generate import retriangulate
+        from glint_mi.dataset.generate import retriangulate
 
         st = retriangulate(args.scene)
         print(f"wrote {args.scene / 'sparse' / '0'}: {st['points3D']} points, {st['observations']} observations")
         return 0
     if args.cmd == "cycles":
-        from .cycles_render import CyclesUnavailable, render_cycles
+        from glint_mi.dataset.cycles_render import CyclesUnavailable, render_cycles
 
         try:
             out = render_cycles(args.scene, args.views.split(",") if args.views else None, args.spp)
@@ -82,7 +82,7 @@ def main(argv=None) -> int:
               f"`python -m glint_mi.crosscheck {args.scene}`")
         return 0
     if args.cmd == "make" and args.renderer == "cycles":
-        from .cycles_render import CyclesUnavailable, find_bpy
+        from glint_mi.dataset.cycles_render import CyclesUnavailable, find_bpy
 
         try:
             find_bpy()
@@ -90,7 +90,7 @@ def main(argv=None) -> int:
             print(f"error: {e}", file=sys.stderr)
             return 3
     if args.cmd == "priors":
-        from .priors import MODELS, derive_priors, prior_conventions
+        from glint_mi.dataset.priors import MODELS, derive_priors, prior_conventions
 
         c = MODELS[args.model]()
         if args.see_through is not None:
@@ -108,7 +108,7 @@ def main(argv=None) -> int:
 
     from tqdm import tqdm
 
-    from .generate import Preset, make_scene
+    from glint_mi.dataset.generate import Preset, make_scene
 
     preset = Preset.named(args.preset, views=args.views, spp=args.spp)
     args.out.mkdir(parents=True, exist_ok=True)

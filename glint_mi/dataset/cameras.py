@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import MI_TO_COLMAP, MI_TO_GL, rotmat_to_qvec
+from glint_mi.conventions import MI_TO_COLMAP, MI_TO_GL, rotmat_to_qvec
 
 
 @dataclasses.dataclass

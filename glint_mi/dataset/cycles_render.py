@@ -81,7 +81,7 @@ def describe_scene(scene_dir: Path, out: Path, spp: int = 256, max_depth: int = 
     ``cameras`` (objects with name, c2w, width, height, K): default the dataset's views."""
     from plyfile import PlyData
 
-    from ..data import load_dataset
+    from glint_mi.data import load_dataset
 
     scene_dir = Path(scene_dir)
     xml_path = scene_dir / "scene.xml"

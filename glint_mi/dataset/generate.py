@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import linear_to_srgb
-from ..exr import read_gt_exr, write_gt_exr
-from .cameras import Camera, trajectory, write_colmap_text, write_transforms_json
-from .room import RoomScene, build_room
+from glint_mi.conventions import linear_to_srgb
+from glint_mi.data.exr import read_gt_exr, write_gt_exr
+from glint_mi.dataset.cameras import Camera, trajectory, write_colmap_text, write_transforms_json
+from glint_mi.dataset.room import RoomScene, build_room
 
 PRESETS = {  # protocol.md size presets; spp measured so that ground-truth noise stays below the metrics' resolution
     "tiny": {"width": 48, "height": 27, "views": 8, "spp": 64},
@@ -118,7 +118,7 @@ def first_surface_buffers(scene, sensor) -> dict[str, np.ndarray]:
     import drjit as dr
     import mitsuba as mi
 
-    from glint_mi.render import camera_rays
+    from glint_mi.model.render import camera_rays
     from glint_mi_plugins.glint_integrator import first_surface
 
     w, h = sensor.film().crop_size()
@@ -178,9 +178,9 @@ def render_views_cycles(scene, folder: Path, cams: list[Camera], spp: int, progr
     protocol's convention; Cycles writes the surface's own normal). ``scene`` (Mitsuba) gives the camera rays only.
     """
 
-    from glint_mi.render import camera_rays
+    from glint_mi.model.render import camera_rays
 
-    from .cycles_render import read_cycles_exr, render_cycles
+    from glint_mi.dataset.cycles_render import read_cycles_exr, render_cycles
 
     (folder / "images").mkdir(exist_ok=True)
     (folder / "gt").mkdir(exist_ok=True)
@@ -250,7 +250,7 @@ def sfm_points(scene, folder: Path, cams: list[Camera], mode: str, width: int = 
 
     from glint_mi.data import View
 
-    from .sfm import full_sfm_pose_error
+    from glint_mi.dataset.sfm import full_sfm_pose_error
 
     scale = max(1, int(np.ceil(width / cams[0].width)))
     fast = mi.load_dict({"type": "path", "max_depth": 6})  # feature matching needs texture, not exact transport
@@ -275,7 +275,7 @@ def sfm_points(scene, folder: Path, cams: list[Camera], mode: str, width: int = 
 def _triangulate(folder: Path, cams: list[Camera], scale: float):
     """Known-pose triangulation on ``folder``/sfm/images (``scale`` x the cameras' resolution); tracks in the
     cameras' own pixels."""
-    from .sfm import triangulate_known_poses
+    from glint_mi.dataset.sfm import triangulate_known_poses
 
     big = [c.scaled(scale) for c in cams]
     xyz, rgb, stats, tracks = triangulate_known_poses([folder / "sfm" / "images" / f"{c.name}.png" for c in big], big)
@@ -326,7 +326,7 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     if renderer not in ("mitsuba", "cycles"):
         raise ValueError(f"renderer must be mitsuba or cycles (got '{renderer}').")
     if renderer == "cycles":
-        from .cycles_render import find_bpy
+        from glint_mi.dataset.cycles_render import find_bpy
 
         find_bpy()  # fail before any work when the extra is missing
     import mitsuba as mi
@@ -372,7 +372,7 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
             "sfm_images": "Mitsuba path (max_depth 6) renders for SIFT" if sfm != "none" else None,
             "emitter_scale": exposure, **stats, "total_seconds": time.perf_counter() - t0}
     if priors:
-        from .priors import MODELS, derive_priors
+        from glint_mi.dataset.priors import MODELS, derive_priors
 
         model = MODELS[prior_model]()
         if see_through is not None:

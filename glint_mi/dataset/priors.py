@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from glint_mi.data.priors import KINDS, PriorError, load_prior, prior_conventions, priors_are_derived  # noqa: F401
-from glint_mi.metrics import angles_deg as _angle_deg
+from glint_mi.evaluation.metrics import angles_deg as _angle_deg
 
 
 @dataclasses.dataclass
@@ -56,7 +56,7 @@ def _behind_glass(scene, sensor, max_steps=16, points=False):
     import drjit as dr
     import mitsuba as mi
 
-    from glint_mi.render import camera_rays
+    from glint_mi.model.render import camera_rays
     from glint_mi_plugins.glint_integrator import first_surface, is_glass
 
     w, h = sensor.film().crop_size()
@@ -421,7 +421,7 @@ def _first_albedo(scene, sensor):
     """Diffuse albedo [H, W, 3] of the first surface along each pixel's ray, glass included (its BSDF's own)."""
     import drjit as dr
 
-    from glint_mi.render import camera_rays
+    from glint_mi.model.render import camera_rays
 
     w, h = sensor.film().crop_size()
     pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
@@ -438,7 +438,7 @@ def _trace_view(scene, sensor) -> dict:
     import drjit as dr
     import mitsuba as mi
 
-    from glint_mi.render import camera_rays
+    from glint_mi.model.render import camera_rays
 
     w, h = sensor.film().crop_size()
     pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)

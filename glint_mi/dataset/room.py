@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from .geometry import Mesh, box, cylinder, quad, sphere, wall_with_openings
+from glint_mi.dataset.geometry import Mesh, box, cylinder, quad, sphere, wall_with_openings
 
 
 @dataclasses.dataclass

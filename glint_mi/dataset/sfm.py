@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import qvec_to_rotmat
-from .cameras import Camera, colmap_pose
+from glint_mi.conventions import qvec_to_rotmat
+from glint_mi.dataset.cameras import Camera, colmap_pose
 
 
 @contextlib.contextmanager

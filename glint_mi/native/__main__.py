@@ -3,7 +3,7 @@ error: the integrator then uses Mitsuba's BVH queries)."""
 import argparse
 import sys
 
-from . import build
+from glint_mi.native import build
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(prog="python -m glint_mi.native", description=__doc__.split("\n")[0] + ")",

@@ -2,8 +2,9 @@
 
 One iteration: draw ``patches`` p x p patches across training views -> ``integrator.trace`` (primal) -> losses on
 Dr.Jit leaves of the traced buffers -> their adjoints -> ``integrator.backward`` (path replay, constant memory) ->
-renderer-space gradients -> chain rule to raw parameters (:func:`glint_mi.optim.raw_gradients`) -> Adam (numpy).
-Structural changes (densify, prune, resets, dropping a set) go through :class:`glint_mi.strategy.Strategy`.
+renderer-space gradients -> chain rule to raw parameters (:func:`glint_mi.training.optim.raw_gradients`) -> Adam
+(numpy).
+Structural changes (densify, prune, resets, dropping a set) go through :class:`glint_mi.training.strategy.Strategy`.
 
 A run folder holds ``config.json``, ``checkpoint.npz`` (atomic; everything to continue exactly, RNG included),
 ``log.csv`` (losses per logged iteration), ``report.json`` (initialisation, component decisions and why,
@@ -23,21 +24,21 @@ from pathlib import Path
 
 import numpy as np
 
-from . import conventions as cv
-from . import losses as L
-from .batch import RayBank
-from .components import ComponentsPolicy
-from .config import LOSS_NAMES, TrainConfig
-from .data import Dataset, DatasetError, load_dataset
-from .evaluate import eval_options
-from .examples import gaussian_scene_dict
-from .gaussians import GaussianSet
-from .model import TRAINING_AOVS, integrator_props, model_xml, shape_props
-from .render import floats
-from .runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset
-from .scene import OptimScene, initial_sets, read_scene
-from .optim import RAW_FIELDS, Adam, raw_gradients
-from .strategy import Strategy
+from glint_mi import conventions as cv
+from glint_mi.training import losses as L
+from glint_mi.training.batch import RayBank
+from glint_mi.training.components import ComponentsPolicy
+from glint_mi.config import LOSS_NAMES, TrainConfig
+from glint_mi.data import Dataset, DatasetError, load_dataset
+from glint_mi.evaluate import eval_options
+from glint_mi.model.examples import gaussian_scene_dict
+from glint_mi.model.gaussians import GaussianSet
+from glint_mi.model.files import TRAINING_AOVS, integrator_props, model_xml, shape_props
+from glint_mi.model.render import floats
+from glint_mi.runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset
+from glint_mi.scene import OptimScene, initial_sets, read_scene
+from glint_mi.training.optim import RAW_FIELDS, Adam, raw_gradients
+from glint_mi.training.strategy import Strategy
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 
@@ -88,7 +89,7 @@ class Trainer:
             self._load_checkpoint()
         else:
             self._fresh()
-        from .machine import describe
+        from glint_mi.machine import describe
 
         self.report["machine"] = describe()  # where this run (its latest segment, when resumed) trained
         cfg = self.cfg
@@ -125,7 +126,7 @@ class Trainer:
                      + (f" ({sd['why']})" if "why" in sd else ""))
         if not resume:
             self._glass_cue_check()
-        from .dataset.priors import priors_are_derived
+        from glint_mi.dataset.priors import priors_are_derived
 
         self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
         self._build()
@@ -141,7 +142,7 @@ class Trainer:
         if not self.ds.train_views:
             raise DatasetError(f"{self.ds.root}: no training views (check split.json).")
         if self.cfg.priors == "all":  # before SfM and initialisation: a bad prior is found in seconds, not minutes
-            from .data.priors import PriorError, check_priors
+            from glint_mi.data.priors import PriorError, check_priors
 
             problems = check_priors(self.ds.root, self.ds.train_views)
             if problems:
@@ -232,7 +233,7 @@ class Trainer:
         self.dev = None
         self._host_stale = False  # the device holds newer values than self.sets (update: device)
         if self.cfg.update == "device":
-            from .device_step import DeviceUpdate
+            from glint_mi.training.device_step import DeviceUpdate
 
             self.dev = DeviceUpdate(self.adam, self.cfg.kernel, self.extent)
             for role, gs in self.sets.items():
@@ -615,8 +616,8 @@ class Trainer:
     def evaluate_now(self) -> dict:
         """Test-view metrics of the current model (no files but ``convergence.csv``), recorded against iteration,
         epoch and training seconds: the convergence curve (``eval_every``)."""
-        from . import metrics as M
-        from .evaluate import evaluate
+        from glint_mi.evaluation import metrics as M
+        from glint_mi.evaluate import evaluate
 
         m = evaluate(self.integ_for_eval(), self.eval_views(), write=False, **self.eval_options())["metrics"]
         row = {"iteration": self.it, "epoch": self.epoch,
@@ -753,8 +754,8 @@ class Trainer:
         for role in set(self.sets) - set(sets):
             (model / f"{role}.ply").unlink(missing_ok=True)
         v = (self.ds.test_views or self.ds.train_views)[0]
-        from .dataset.cameras import Camera
-        from .dataset.generate import sensor_xml
+        from glint_mi.dataset.cameras import Camera
+        from glint_mi.dataset.generate import sensor_xml
 
         if self.env is not None:  # refgs: the directional grid, [h, w, 3] log-radiance
             buf = io.BytesIO()
@@ -768,7 +769,7 @@ class Trainer:
         atomic_write_text(model / "scene.xml", xml)
         self._write_log()
         if self.history:
-            from .plots import training_curves
+            from glint_mi.evaluation.plots import training_curves
 
             training_curves(self.history, self.run_dir / "curves.png")
         return model

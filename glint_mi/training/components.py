@@ -66,7 +66,7 @@ class ComponentsPolicy:
         c = self.cfg
         if c.no_glass not in ("3dgs", "3dgs+sfm"):
             return None
-        from .methods import METHODS
+        from glint_mi.methods import METHODS
 
         m = METHODS["3dgs"].overrides
         # blend: with both extra sets gone GLINT's Fresnel weights give everything to the diffuse term, the same

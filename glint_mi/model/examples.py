@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .gaussians import GaussianSet
+from glint_mi.model.gaussians import GaussianSet
 
 
 def _plane(rng, n, origin, u, v, normal_axis_quat, color, opacity=0.9, size=0.05, jitter=0.15, **extra):

@@ -60,11 +60,11 @@ def run_variants(scene_xml: Path, out: Path, variants: dict[str, dict], preset: 
     ``seen`` (shared across calls on the same scene) maps a resolved configuration to its result: a variant equal
     to one already trained (e.g. "iters x1" and "SH 1" are both the base) is reported from that run, not retrained.
     """
-    from .config import TrainConfig
-    from .evaluate import evaluate
-    from .runs import finished_metrics, train_unless_done
-    from .scene import read_scene
-    from .train import Trainer
+    from glint_mi.config import TrainConfig
+    from glint_mi.evaluate import evaluate
+    from glint_mi.runs import finished_metrics, train_unless_done
+    from glint_mi.scene import read_scene
+    from glint_mi.training.trainer import Trainer
 
     rows = []
     base_cfg = TrainConfig.for_preset(preset, **base)
@@ -108,8 +108,8 @@ def mesh_reference_trade(spps=(4, 16, 64), ref_spp: int = 1024, width: int = 48,
     ``max_depth`` in ``depths``, and for the first-order mesh mode at every spp."""
     import mitsuba as mi
 
-    from .meshes import glass_room_dict
-    from .render import render_buffers
+    from glint_mi.model.mesh_room import glass_room_dict
+    from glint_mi.model.render import render_buffers
 
     ref = np.array(mi.render(mi.load_dict(glass_room_dict({"type": "path", "max_depth": 64}, True, width, height,
                                                           ref_spp)), seed=99))

@@ -12,7 +12,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .config import LOSS_NAMES
+from glint_mi.config import LOSS_NAMES
 
 
 def depth_fit(depth, prior, mask, view, n_views: int):
@@ -233,7 +233,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
     The terms and the statistics are reduced on the device. ``read`` (default) returns them as floats; with
     ``read=False`` they stay width-1 Dr.Jit arrays, scheduled for the next evaluation (the backward's), so a training
     step reads nothing back until it is logged (:func:`read_values`)."""
-    from .batch import DeviceBatch, device_neighbours, to_device
+    from glint_mi.training.batch import DeviceBatch, device_neighbours, to_device
 
     if not isinstance(b, DeviceBatch):
         b = to_device(b)
@@ -451,7 +451,7 @@ def batch_transparency_masks(c, b, out: dict, extent: float, gate: bool = False)
     gate), coverage = the share of the batch's pixels in the transparent mask (before the improvement weight; what
     components: auto reads; a width-1 Float); gate (with ``gate``, else None) = the rays where t may rise under
     ``t_raise: masks``: outside the opaque mask, read with or without its dark-surface vote (``t_gate_votes``).
-    ``b``: a :class:`glint_mi.batch.DeviceBatch`."""
+    ``b``: a :class:`glint_mi.training.batch.DeviceBatch`."""
     _, Dd, _, DA = out["trans_direct"]
     dI, dT = dr.detach(mi.Float(out["depth"])), dr.detach(mi.Float(Dd))
     aI, aT = dr.detach(mi.Float(out["alpha"])), dr.detach(mi.Float(DA))

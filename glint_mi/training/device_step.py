@@ -3,11 +3,13 @@ the gradient statistics densification reads, a selective Adam and the packing of
 layout, all on Dr.Jit arrays of the variant in force (LLVM or CUDA), so that between two structure changes nothing of
 a set goes to the host and back.
 
-The host (numpy) :class:`glint_mi.gaussians.GaussianSet`, :class:`glint_mi.optim.Adam` and
-:class:`glint_mi.strategy.Strategy` stay the record: densification, resets, checkpoints and saving read them after
+The host (numpy) :class:`glint_mi.model.gaussians.GaussianSet`, :class:`glint_mi.training.optim.Adam` and
+:class:`glint_mi.training.strategy.Strategy` stay the record: densification, resets, checkpoints and saving read them
+after
 :meth:`DeviceUpdate.pull`, and a set whose rows changed on the host is sent back with :meth:`DeviceUpdate.load`.
 
-The arithmetic is :func:`glint_mi.optim.raw_gradients` followed by :meth:`glint_mi.optim.Adam.step`, operation
+The arithmetic is :func:`glint_mi.training.optim.raw_gradients` followed by
+:meth:`glint_mi.training.optim.Adam.step`, operation
 by operation in the reference's precision (float64 where numpy computes in float64, float32 where it does): on LLVM
 the two are equal bit for bit, on CUDA (fast-math float32 division and square root) to float32 rounding
 (tests/test_device_step.py). Which one a run uses is the config's ``update`` (device | host).
@@ -22,8 +24,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .gaussians import MIN_SHELL_FACTOR, GaussianSet
-from .optim import RAW_FIELDS
+from glint_mi.model.gaussians import MIN_SHELL_FACTOR, GaussianSet
+from glint_mi.training.optim import RAW_FIELDS
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 
@@ -105,7 +107,7 @@ class DeviceUpdate:
 
     # ------------------------------------------------------------------- the step
     def gradients(self, role: str, grads: dict, sh_degree, zero: set[str]) -> dict:
-        """:func:`glint_mi.optim.raw_gradients` on the device (float64, the reference's operations in its order),
+        """:func:`.optim.raw_gradients` on the device (float64, the reference's operations in its order),
         then the SH bands above ``sh_degree`` (an opaque UInt32) and the ``zero`` fields set to 0, and non-finite
         entries zeroed (counted in the set's ``bad``). Float64 arrays, one per raw field."""
         F64 = mi.Float64
@@ -207,7 +209,7 @@ class DeviceUpdate:
 
     # ------------------------------------------------------------------ packing
     def pack(self, role: str, min_shell_ratio: float, opacity_shells: bool, extent: float) -> dict:
-        """:meth:`glint_mi.gaussians.GaussianSet.to_mitsuba` on the device (float64, rounded to float32 at the end,
+        """:meth:`GaussianSet.to_mitsuba` on the device (float64, rounded to float32 at the end,
         as the reference): the ``glint_gaussians`` parameters (flat float32 Dr.Jit arrays) of the set's values."""
         F64 = mi.Float64
         s = self.sets[role]

@@ -13,7 +13,7 @@ def fresnel_weights_vs_angle(angles_deg, beta: float = 0.0, tau: float = 0.5, io
     """
     import mitsuba as mi
 
-    from .gaussians import GaussianSet
+    from glint_mi.model.gaussians import GaussianSet
     from glint_mi_plugins.glint_gaussians import make_shape
 
     rng = np.random.default_rng(0)
@@ -41,8 +41,8 @@ def mesh_mode_vs_path(width=48, height=36, spp=64, seed=7) -> dict:
     """The first-order glass reference (glint mesh mode) against Mitsuba's full path tracer on a small glass room."""
     import mitsuba as mi
 
-    from .meshes import glass_room_dict
-    from .render import render_buffers
+    from glint_mi.model.mesh_room import glass_room_dict
+    from glint_mi.model.render import render_buffers
 
     path_scene = mi.load_dict(glass_room_dict({"type": "path", "max_depth": 64}, True, width, height, spp))
     fo_scene = mi.load_dict(glass_room_dict({"type": "glint", "max_depth": 64}, True, width, height, spp))

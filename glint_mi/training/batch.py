@@ -12,9 +12,9 @@ import functools
 
 import numpy as np
 
-from .data import View
-from .conventions import MI_TO_COLMAP
-from .data.priors import load_prior, prior_conventions
+from glint_mi.data import View
+from glint_mi.conventions import MI_TO_COLMAP
+from glint_mi.data.priors import load_prior, prior_conventions
 
 
 def pixel_rays(view: View, pixels: np.ndarray | None = None):
@@ -74,7 +74,7 @@ class RayBank:
             maps = [load_prior(root, v, kind) if use_priors else None for v in views]
             lack = [v.name for v, m in zip(views, maps) if m is None]
             if lack and len(lack) < len(views):  # a kind for some views only would be dropped without a word
-                from .data.priors import PriorError, partial_kind
+                from glint_mi.data.priors import PriorError, partial_kind
 
                 raise PriorError(partial_kind(root, kind, lack, len(views)))
             if not lack:
@@ -86,7 +86,7 @@ class RayBank:
         self.sfm_depth = None  # see set_sfm_depth
         self.glass = None
         if glass_masks in ("gt", "prior"):  # TSGS's masks: ground truth (labelled) or a segmentation model's
-            from .data import DatasetError
+            from glint_mi.data import DatasetError
 
             read = (lambda v: (v.load_gt() or {}).get("glass")) if glass_masks == "gt" else \
                 (lambda v: load_prior(root, v, "glass"))
@@ -326,7 +326,7 @@ class RayBank:
         import drjit as dr
         import mitsuba as mi
 
-        from .render import aligned
+        from glint_mi.model.render import aligned
 
         vidx, _, y0, x0 = self._draw(rng, patches, p)
         a = self.device_arrays()
@@ -348,7 +348,7 @@ class RayBank:
             return cached[1]
         import mitsuba as mi
 
-        from .render import aligned
+        from glint_mi.model.render import aligned
 
         f = lambda x: None if x is None else mi.Float(aligned(np.asarray(x, np.float32).ravel()))
         arrays = {"offsets": mi.UInt32(aligned(self.offsets[:-1], np.uint32)),
@@ -390,7 +390,7 @@ def device_neighbours(patches: int, p: int):
 def _device_neighbours(patches: int, p: int, variant: str):
     import mitsuba as mi
 
-    from .render import aligned
+    from glint_mi.model.render import aligned
 
     return tuple(mi.UInt32(aligned(x, np.uint32)) for x in patch_neighbours(patches, p))
 
@@ -443,7 +443,7 @@ def to_device(b: Batch) -> DeviceBatch:
     """A host :class:`Batch` sent to the device as it is (tests and benchmarks that draw with :meth:`RayBank.sample`)."""
     import mitsuba as mi
 
-    from .render import aligned, floats
+    from glint_mi.model.render import aligned, floats
 
     vec = lambda cls, x: None if x is None else cls(*floats(x))
     one = lambda x: None if x is None else floats(x)

@@ -1,7 +1,8 @@
 """Densification for Gaussian sets whose size changes during training.
 
 Every structural change (clone, split, prune) goes through :class:`Strategy`, which remaps the set, the Adam state
-(:class:`glint_mi.optim.Adam`) and the gradient statistics with one index array, so the three can never disagree
+(:class:`glint_mi.training.optim.Adam`) and the gradient statistics with one index array, so the three can never
+disagree
 (``index[i]`` = the old row new row ``i`` comes from, -1 for a row with fresh state).
 """
 from __future__ import annotations
@@ -10,8 +11,8 @@ import dataclasses
 
 import numpy as np
 
-from . import conventions as cv
-from .gaussians import GaussianSet
+from glint_mi import conventions as cv
+from glint_mi.model.gaussians import GaussianSet
 
 
 @dataclasses.dataclass

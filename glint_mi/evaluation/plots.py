@@ -10,7 +10,7 @@ def show_buffers(buffers: dict, names=BUFFERS, width_per_panel: float = 2.6):
     """One row of panels: linear colours shown in sRGB, normals as 0.5 n + 0.5, scalar maps with a colour bar."""
     import matplotlib.pyplot as plt
 
-    from .conventions import linear_to_srgb
+    from glint_mi.conventions import linear_to_srgb
 
     names = [n for n in names if n in buffers]
     fig, axes = plt.subplots(1, len(names), figsize=(width_per_panel * len(names), 2.0), squeeze=False)
@@ -38,7 +38,7 @@ def training_curves(history: list[dict], path=None):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from .config import LOSS_NAMES
+    from glint_mi.config import LOSS_NAMES
 
     it = np.array([h["iteration"] for h in history])
     fig, ax = plt.subplots(1, 3, figsize=(13, 3.4))

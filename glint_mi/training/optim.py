@@ -1,16 +1,16 @@
 """The optimiser of Gaussian sets on the host: the chain rule from the renderer's parameters to the raw fields
 (:func:`raw_gradients`) and Adam with per-row moments (:class:`Adam`).
 
-Parameters live in :class:`glint_mi.gaussians.GaussianSet` (raw, numpy float32): the renderer sees their
+Parameters live in :class:`glint_mi.model.gaussians.GaussianSet` (raw, numpy float32): the renderer sees their
 activations (``to_mitsuba``), gradients come back in renderer space. ``update: device`` runs the same arithmetic on
-Dr.Jit arrays (:mod:`glint_mi.device_step`); this module is its reference and the ``update: host`` path.
+Dr.Jit arrays (:mod:`glint_mi.training.device_step`); this module is its reference and the ``update: host`` path.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from . import conventions as cv
-from .gaussians import GaussianSet
+from glint_mi import conventions as cv
+from glint_mi.model.gaussians import GaussianSet
 
 RAW_FIELDS = ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit_specular", "logit_transparency")
 
@@ -109,7 +109,7 @@ class Adam:
         m, v, n = state
         n += 1
         if self.NATIVE:  # one row of len(value) columns in glint_mi.native: the arithmetic below, bit for bit
-            from . import native
+            from glint_mi import native
             row = lambda a: a.reshape(1, -1)
             if native.adam_rows(row(value), row(m), row(v), row(np.ascontiguousarray(grad, np.float64)),
                                 np.zeros(1, np.int64), 1.0 - self.b1 ** n, 1.0 - self.b2 ** n, lr, self.b1, self.b2,
@@ -130,7 +130,7 @@ class Adam:
         """One field's step in glint_mi.native (the arithmetic below, bit for bit, one pass over the touched rows);
         False when the library or the arrays' layout does not allow it (float32 fields and moments, float64
         C-contiguous gradients; otherwise the numpy code runs instead)."""
-        from . import native
+        from glint_mi import native
         rows = np.arange(len(value)) if idx is None else idx
         ns = n[rows] + 1
         c1, c2 = 1.0 - self.b1 ** ns, 1.0 - self.b2 ** ns
