@@ -307,11 +307,15 @@ class GlintIntegrator(GaussianPasses):
         finally:
             self.enabled = before
 
+    def lists_mb(self, n_rays: int) -> float:
+        """MiB the stored hit lists of ``n_rays`` rays take: n_rays x max_hits x 4 bytes for each of up to five
+        passes."""
+        return n_rays * self.max_hits * 4 * 5 / 2 ** 20
+
     def lists_fit(self, n_rays: int, budget_mb: float | None = None) -> bool:
-        """Whether the stored hit lists of ``n_rays`` rays (n_rays x max_hits x 4 bytes for each of up to five passes)
-        fit in ``budget_mb`` MiB (default: ``stored_hits_mb``); a batch that does not re-traces in the replay."""
-        budget_mb = self.stored_hits_mb if budget_mb is None else budget_mb
-        return n_rays * self.max_hits * 4 * 5 <= budget_mb * 2 ** 20
+        """Whether the stored hit lists of ``n_rays`` rays fit in ``budget_mb`` MiB (default: ``stored_hits_mb``); a
+        batch that does not re-traces in the replay."""
+        return self.lists_mb(n_rays) <= (self.stored_hits_mb if budget_mb is None else budget_mb)
 
     def aov_names(self):
         return [name for g in self.aov_groups for name in AOV_GROUPS[g]]

@@ -122,8 +122,7 @@ def first_surface_buffers(scene, sensor) -> dict[str, np.ndarray]:
     from glint_mi_plugins.glint_integrator import first_surface
 
     w, h = sensor.film().crop_size()
-    pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
-    ray, fwd = camera_rays(sensor, pix)
+    ray, fwd = camera_rays(sensor)
     with dr.suspend_grad():
         si = scene.ray_intersect(ray)
         s = first_surface(si, ray, mi.Bool(True), fwd)
@@ -196,8 +195,7 @@ def render_views_cycles(scene, folder: Path, cams: list[Camera], spp: int, progr
             cy = read_cycles_exr(out / f"{name}.exr")
             sensor = scene.sensors()[i]
             w, h = cams[i].width, cams[i].height
-            pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
-            d = np.array(camera_rays(sensor, pix)[0].d).T.reshape(h, w, 3)
+            d = np.array(camera_rays(sensor)[0].d).T.reshape(h, w, 3)
             n = cy["normal"]
             n = np.where((np.sum(n * d, -1) > 0)[..., None], -n, n)
             hit = cy["depth"] > 0

@@ -60,8 +60,7 @@ def _behind_glass(scene, sensor, max_steps=16, points=False):
     from glint_mi_plugins.glint_integrator import first_surface, is_glass
 
     w, h = sensor.film().crop_size()
-    pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
-    ray, fwd = camera_rays(sensor, pix)
+    ray, fwd = camera_rays(sensor)
     o = mi.Point3f(ray.o)
     with dr.suspend_grad():
         si = scene.ray_intersect(ray)
@@ -417,6 +416,12 @@ def measure_priors(maps: dict, gt: dict, c2w, first_albedo=None) -> dict:
     return out
 
 
+def _diffuse_albedo(si, h: int, w: int) -> np.ndarray:
+    """Diffuse albedo [H, W, 3] of the surfaces ``si`` hit (their BSDF's own; a glass BSDF's is ~0), 0 on a miss."""
+    albedo = si.bsdf().eval_diffuse_reflectance(si, si.is_valid())
+    return np.nan_to_num(np.array(albedo).T.reshape(h, w, 3))
+
+
 def _first_albedo(scene, sensor):
     """Diffuse albedo [H, W, 3] of the first surface along each pixel's ray, glass included (its BSDF's own)."""
     import drjit as dr
@@ -424,12 +429,9 @@ def _first_albedo(scene, sensor):
     from glint_mi.model.render import camera_rays
 
     w, h = sensor.film().crop_size()
-    pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
-    ray, _ = camera_rays(sensor, pix)
+    ray, _ = camera_rays(sensor)
     with dr.suspend_grad():
-        si = scene.ray_intersect(ray)
-        albedo = si.bsdf().eval_diffuse_reflectance(si, si.is_valid())
-    return np.nan_to_num(np.array(albedo).T.reshape(h, w, 3))
+        return _diffuse_albedo(scene.ray_intersect(ray), h, w)
 
 
 def _trace_view(scene, sensor) -> dict:
@@ -441,14 +443,12 @@ def _trace_view(scene, sensor) -> dict:
     from glint_mi.model.render import camera_rays
 
     w, h = sensor.film().crop_size()
-    pix = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
-    ray, _ = camera_rays(sensor, pix)
-    with dr.suspend_grad():  # the first hit once, for all three (_first_albedo's albedo, from the same hit)
+    ray, _ = camera_rays(sensor)
+    with dr.suspend_grad():  # the first hit once, for all three
         si = scene.ray_intersect(ray)
         glossy = mi.has_flag(si.bsdf().flags(), mi.BSDFFlags.Glossy) & si.is_valid()
         first_p = np.array(si.p).T.reshape(h, w, 3)
-        albedo = si.bsdf().eval_diffuse_reflectance(si, si.is_valid())
-        first_albedo = np.nan_to_num(np.array(albedo).T.reshape(h, w, 3))
+        first_albedo = _diffuse_albedo(si, h, w)
     z, n, alb, p = _behind_glass(scene, sensor, points=True)
     return {"first_p": np.nan_to_num(first_p), "first_albedo": first_albedo,
             "first_glossy": np.array(glossy).reshape(h, w), "behind_depth": z, "behind_normal": n,

@@ -49,8 +49,9 @@ def render_buffers(scene, spp: int | None = None, seed: int = 0, sensor: int = 0
     return {name: img[..., sl] for name, sl in aov_layout(integrator).items()}
 
 
-def camera_rays(sensor, pixels: np.ndarray):
-    """Rays through pixel centres ``pixels`` [M, 2] (x, y) of ``sensor``; returns (mi.Ray3f, forward Vector3f).
+def camera_rays(sensor, pixels: np.ndarray | None = None):
+    """Rays through pixel centres ``pixels`` [M, 2] (x, y) of ``sensor`` (default: every pixel of its film, row-major);
+    returns (mi.Ray3f, forward Vector3f).
 
     Perspective rays start at the camera centre (not on the near plane), so hit distances are from the camera.
     """
@@ -59,6 +60,9 @@ def camera_rays(sensor, pixels: np.ndarray):
     from glint_mi_plugins.glint_integrator import from_pinhole
 
     size = np.array(sensor.film().crop_size(), dtype=np.float64)
+    if pixels is None:
+        w, h = (int(x) for x in size)
+        pixels = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
     uv = (np.asarray(pixels, np.float64) + 0.5) / size
     ray, _ = sensor.sample_ray(0.0, 0.0, mi.Point2f(mi.Float(uv[:, 0]), mi.Float(uv[:, 1])), mi.Point2f(0.5))
     forward = mi.Vector3f(sensor.world_transform() @ mi.Vector3f(0, 0, 1))

@@ -96,10 +96,9 @@ def load():
 def adam_rows(value, m, v, g, rows, c1, c2, lr, b1: float, b2: float, eps: float) -> bool:
     """Adam's update of the ``rows`` (int64 [R], each in [0, N): not checked) of one field in place, as
     ``glint_mi.training.optim.Adam.step`` computes it (bit for bit): ``value``, ``m``, ``v`` float32 [N, ...], ``g``
-    float64
-    [N, ...] (all C-contiguous, one shape), ``c1``, ``c2`` float64 [R] (1 - b^n per row), ``lr`` float64, one rate per
-    column. Returns False, touching nothing, when the library is unavailable or an array is not of that layout (the
-    caller computes it)."""
+    float64 [N, ...] (all C-contiguous, one shape), ``c1``, ``c2`` float64 [R] (1 - b^n per row), ``lr`` float64, one
+    rate per column. Returns False, touching nothing, when the library is unavailable or an array is not of that layout
+    (the caller computes it)."""
     import numpy as np
     lib = load()
     if lib is None:

@@ -5,12 +5,11 @@ a set goes to the host and back.
 
 The host (numpy) :class:`glint_mi.model.gaussians.GaussianSet`, :class:`glint_mi.training.optim.Adam` and
 :class:`glint_mi.training.strategy.Strategy` stay the record: densification, resets, checkpoints and saving read them
-after
-:meth:`DeviceUpdate.pull`, and a set whose rows changed on the host is sent back with :meth:`DeviceUpdate.load`.
+after :meth:`DeviceUpdate.pull`, and a set whose rows changed on the host is sent back with
+:meth:`DeviceUpdate.load`.
 
 The arithmetic is :func:`glint_mi.training.optim.raw_gradients` followed by
-:meth:`glint_mi.training.optim.Adam.step`, operation
-by operation in the reference's precision (float64 where numpy computes in float64, float32 where it does): on LLVM
+:meth:`glint_mi.training.optim.Adam.step`, operation by operation in the reference's precision (float64 where numpy computes in float64, float32 where it does): on LLVM
 the two are equal bit for bit, on CUDA (fast-math float32 division and square root) to float32 rounding
 (tests/test_device_step.py). Which one a run uses is the config's ``update`` (device | host).
 
@@ -107,9 +106,9 @@ class DeviceUpdate:
 
     # ------------------------------------------------------------------- the step
     def gradients(self, role: str, grads: dict, sh_degree, zero: set[str]) -> dict:
-        """:func:`.optim.raw_gradients` on the device (float64, the reference's operations in its order),
-        then the SH bands above ``sh_degree`` (an opaque UInt32) and the ``zero`` fields set to 0, and non-finite
-        entries zeroed (counted in the set's ``bad``). Float64 arrays, one per raw field."""
+        """:func:`glint_mi.training.optim.raw_gradients` on the device (float64, the reference's operations in its
+        order), then the SH bands above ``sh_degree`` (an opaque UInt32) and the ``zero`` fields set to 0, and
+        non-finite entries zeroed (counted in the set's ``bad``). Float64 arrays, one per raw field."""
         F64 = mi.Float64
         s = self.sets[role]
         n = s.n
@@ -209,8 +208,8 @@ class DeviceUpdate:
 
     # ------------------------------------------------------------------ packing
     def pack(self, role: str, min_shell_ratio: float, opacity_shells: bool, extent: float) -> dict:
-        """:meth:`GaussianSet.to_mitsuba` on the device (float64, rounded to float32 at the end,
-        as the reference): the ``glint_gaussians`` parameters (flat float32 Dr.Jit arrays) of the set's values."""
+        """:meth:`glint_mi.model.gaussians.GaussianSet.to_mitsuba` on the device (float64, rounded to float32 at the
+        end, as the reference): the ``glint_gaussians`` parameters (flat float32 Dr.Jit arrays) of the set's values."""
         F64 = mi.Float64
         s = self.sets[role]
         n = s.n

@@ -2,8 +2,7 @@
 
 Every structural change (clone, split, prune) goes through :class:`Strategy`, which remaps the set, the Adam state
 (:class:`glint_mi.training.optim.Adam`) and the gradient statistics with one index array, so the three can never
-disagree
-(``index[i]`` = the old row new row ``i`` comes from, -1 for a row with fresh state).
+disagree (``index[i]`` = the old row new row ``i`` comes from, -1 for a row with fresh state).
 """
 from __future__ import annotations
 
