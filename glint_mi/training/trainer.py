@@ -26,8 +26,8 @@ import numpy as np
 
 from glint_mi import conventions as cv
 from glint_mi.training import losses as L
-from glint_mi.training.batch import RayBank
 from glint_mi.training.components import ComponentsPolicy
+from glint_mi.training.inputs import training_inputs
 from glint_mi.config import LOSS_NAMES, TrainConfig
 from glint_mi.data import Dataset, DatasetError, load_dataset
 from glint_mi.evaluate import eval_options
@@ -97,33 +97,8 @@ class Trainer:
             glass_of = eval_options(cfg, self.ds.root)["glass_of"]
             for v in self.ds.test_views:
                 glass_of(v)
-        self.bank = RayBank(self.ds.train_views, self.ds.root, use_priors=cfg.priors == "all",
-                            glass_masks=cfg.trans_masks)
-        self.report["priors"] = sorted(self.bank.has)
-        if not self.bank.has and "transmission" in self.sets:
-            self.log(f"no priors ({self.ds.root}/priors holds no depth, normal or albedo maps"
-                     + (", priors: none" if cfg.priors == "none" else "") + "): geometry comes from the photos, "
-                     "depth-normal consistency and the SfM points' depth; nothing tells glass from a wall, so "
-                     "components: auto keeps the interface alone (priors/PRIORS.json and the README say how to add "
-                     "an estimator's maps)")
-        if cfg.depth_align == "image" and resume and getattr(self, "_resume_affine", None) is not None:
-            self.bank.depth_affine = self._resume_affine
-        if cfg.depth_align == "sfm" and "depth" in self.bank.has:
-            self.report["depth_align"] = self.bank.align_depth_priors(self.ds.points, seed=cfg.seed)
-            self.log(f"depth prior aligned to the SfM points in {self.report['depth_align']['aligned_views']} of "
-                     f"{len(self.bank.views)} views (the others keep the per-batch fit)")
-        if cfg.trans_cue != "none" and "transmission" in self.sets:  # only L_trans and plausibility read it
-            cue = self.bank.see_through_cue(self.ds.observations(), cfg.cue_margin, cfg.cue_radius, cfg.cue_votes,
-                                            cfg.cue_point_share)
-            self.report["trans_cue"] = cue
-            self.log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
-                     f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
-                     + (f" ({cue['why']})" if "why" in cue else ""))
-        if cfg.w_sfm_depth > 0:
-            sd = self.bank.set_sfm_depth(self.ds.observations())
-            self.report["sfm_depth"] = sd
-            self.log(f"SfM depth: {sd['pixels']} training pixels carry a tracked feature's depth"
-                     + (f" ({sd['why']})" if "why" in sd else ""))
+        self.bank = training_inputs(self.ds, cfg, "transmission" in self.sets, self.report, self.log,
+                                    getattr(self, "_resume_affine", None) if resume else None)
         if not resume:
             self._glass_cue_check()
         from glint_mi.dataset.priors import priors_are_derived

@@ -1,0 +1,43 @@
+"""What a run trains on besides the photos: the ray bank's priors, aligned and checked, the SfM see-through cue and
+the SfM depth term, each reported (``report.json``) and logged as it is set up. The trainer's constructor calls
+:func:`training_inputs` once, after the sets exist (the cue is built only when a transmission set does)."""
+from __future__ import annotations
+
+import numpy as np
+
+from glint_mi.config import TrainConfig
+from glint_mi.data import Dataset
+from glint_mi.training.batch import RayBank
+
+
+def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, report: dict, log=print,
+                    resume_affine: np.ndarray | None = None) -> RayBank:
+    """The run's ray bank with every input its losses read set up; ``report`` gains what each step found.
+    ``resume_affine``: the image-space depth alignment a resumed run had refitted (``depth_align: image``)."""
+    bank = RayBank(ds.train_views, ds.root, use_priors=cfg.priors == "all", glass_masks=cfg.trans_masks)
+    report["priors"] = sorted(bank.has)
+    if not bank.has and has_transmission:
+        log(f"no priors ({ds.root}/priors holds no depth, normal or albedo maps"
+            + (", priors: none" if cfg.priors == "none" else "") + "): geometry comes from the photos, "
+            "depth-normal consistency and the SfM points' depth; nothing tells glass from a wall, so "
+            "components: auto keeps the interface alone (priors/PRIORS.json and the README say how to add "
+            "an estimator's maps)")
+    if cfg.depth_align == "image" and resume_affine is not None:
+        bank.depth_affine = resume_affine
+    if cfg.depth_align == "sfm" and "depth" in bank.has:
+        report["depth_align"] = bank.align_depth_priors(ds.points, seed=cfg.seed)
+        log(f"depth prior aligned to the SfM points in {report['depth_align']['aligned_views']} of "
+            f"{len(bank.views)} views (the others keep the per-batch fit)")
+    if cfg.trans_cue != "none" and has_transmission:  # only L_trans and plausibility read it
+        cue = bank.see_through_cue(ds.observations(), cfg.cue_margin, cfg.cue_radius, cfg.cue_votes,
+                                   cfg.cue_point_share)
+        report["trans_cue"] = cue
+        log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
+            f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
+            + (f" ({cue['why']})" if "why" in cue else ""))
+    if cfg.w_sfm_depth > 0:
+        sd = bank.set_sfm_depth(ds.observations())
+        report["sfm_depth"] = sd
+        log(f"SfM depth: {sd['pixels']} training pixels carry a tracked feature's depth"
+            + (f" ({sd['why']})" if "why" in sd else ""))
+    return bank
