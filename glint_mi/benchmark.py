@@ -274,6 +274,17 @@ def job_list(methods, scenes, seeds, out: Path) -> list:
             if not (m == PRIORS_ROW and seed != seeds[0])]
 
 
+def where(rows: list[dict]) -> str:
+    """Where the table's runs trained, from their own records (a table rebuilt from finished runs sets no Dr.Jit
+    variant, so this process's would say 'none'), and the machine that wrote the table."""
+    from glint_mi.machine import describe
+
+    d = describe()
+    trained = ", ".join(sorted({f"{r['device']} ({r['variant']})" for r in rows
+                                if r["method"] != PRIORS_ROW})) or "no runs"  # the prior maps train nothing
+    return f"runs trained on {trained}; table written on {d['cpu']}, {d['cores']} cores, {d['system']}"
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m glint_mi.benchmark", description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
@@ -340,7 +351,6 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
-    from glint_mi.machine import summary
 
     jobs = job_list(methods, scenes, seeds, args.out)
     try:
@@ -361,7 +371,7 @@ def main(argv=None) -> int:
         figure(scene.name, runs, args.out / "figures" / f"{scene.name}.png")
     derived = any((s / "priors" / "PRIORS.json").exists() for s in scenes)
     header = (f"Benchmark: `python -m glint_mi.benchmark {' '.join(argv if argv is not None else sys.argv[1:])}`\n\n"
-              f"preset {args.preset}, variant {args.variant}; machine: {summary()}."
+              f"preset {args.preset}, variant {args.variant}; {where(rows)}."
               + (" Priors derived from ground truth (labelled)." if derived else "") + "\n")
     print(write_results(rows, args.out, header))
     curves = {}

@@ -63,6 +63,7 @@ def test_benchmark_tiny(tmp_path):
     from glint_mi.machine import describe
     assert {(x["variant"], x["device"]) for x in rows} == {(describe()["variant"], describe()["device"])}
     table = (out / "table.md").read_text()
+    assert f"runs trained on {describe()['device']} ({describe()['variant']});" in table  # from the runs' records
     for x in rows:  # the markdown table shows the CSV's numbers
         assert f"| {x['method']} | {float(x['fps']):.4g} | {float(x['train_s']):.4g} | {float(x['psnr']):.4g} |" \
             in table
