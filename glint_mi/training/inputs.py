@@ -1,5 +1,5 @@
-"""What a run trains on besides the photos: the ray bank's priors (aligned to the SfM points), the SfM see-through cue and
-the SfM depth term, each reported (``report.json``) and logged as it is set up. The trainer's constructor calls
+"""What a run trains on besides the photos: the ray bank's priors (aligned to the SfM points), the SfM see-through cue
+and the SfM depth term, each reported (``report.json``) and logged as it is set up. The trainer's constructor calls
 :func:`training_inputs` once, after the sets exist (the cue is built only when a transmission set does)."""
 from __future__ import annotations
 
