@@ -351,7 +351,6 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
-
     jobs = job_list(methods, scenes, seeds, args.out)
     try:
         results = run_jobs(jobs, args.preset, args.variant, extra, args.ray,

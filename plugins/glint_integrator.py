@@ -156,6 +156,12 @@ def _read_env(filename: str):
                          f"training with blend refgs.") from e
 
 
+def stored_lists_mb(n_rays: int, max_hits: int) -> float:
+    """MiB the stored hit lists of ``n_rays`` rays take: n_rays x max_hits x 4 bytes for each of up to five passes
+    (the one definition: the integrator's ``lists_fit``, the trainer's note and the presets' tests read it)."""
+    return n_rays * max_hits * 4 * 5 / 2 ** 20
+
+
 def _adjoint_dot(out: dict, adjoints: dict):
     """sum_k <adjoints[k], out[k]> per ray, over rgb and AOV groups (tuples are dotted entry-wise)."""
     total = mi.Float(0.0)
@@ -308,9 +314,8 @@ class GlintIntegrator(GaussianPasses):
             self.enabled = before
 
     def lists_mb(self, n_rays: int) -> float:
-        """MiB the stored hit lists of ``n_rays`` rays take: n_rays x max_hits x 4 bytes for each of up to five
-        passes."""
-        return n_rays * self.max_hits * 4 * 5 / 2 ** 20
+        """MiB the stored hit lists of ``n_rays`` rays take (:func:`stored_lists_mb` at this integrator's budget)."""
+        return stored_lists_mb(n_rays, self.max_hits)
 
     def lists_fit(self, n_rays: int, budget_mb: float | None = None) -> bool:
         """Whether the stored hit lists of ``n_rays`` rays fit in ``budget_mb`` MiB (default: ``stored_hits_mb``); a

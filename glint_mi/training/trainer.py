@@ -98,7 +98,7 @@ class Trainer:
             for v in self.ds.test_views:
                 glass_of(v)
         self.bank = training_inputs(self.ds, cfg, "transmission" in self.sets, self.report, self.log,
-                                    getattr(self, "_resume_affine", None) if resume else None)
+                                    getattr(self, "_resume_affine", None))  # set by _load_checkpoint only
         if not resume:
             self._glass_cue_check()
         from glint_mi.dataset.priors import priors_are_derived
