@@ -681,6 +681,8 @@ class Trainer:
         self.bounds = (z["bounds"][0], z["bounds"][1])
         self.rng.bit_generator.state = json.loads(str(z["rng"]))
         self.report = json.loads(str(z["report"]))
+        if self.report.get("no_glass"):  # dropped before training: it trained as 3DGS, whatever config resumes it
+            self.cfg = dataclasses.replace(self.cfg, **self.report["no_glass"])
         self.components = ComponentsPolicy(self.cfg)
         self.components.load_state_dict({"dropped": json.loads(str(z["dropped"])),
                                          "decisions": self.report.get("components", {})})
