@@ -171,9 +171,15 @@ class LossConfig:
     t_gate_votes: str = "geometric"      # which opaque votes close the t_raise: masks gate: geometric = L_trans's
     #                                      opaque mask without its dark-surface vote (LowA & ~HighB), which glass
     #                                      with a dark background also casts; all = the whole opaque mask
-    cue_margin: float = 0.05             # an SfM feature this fraction of its depth behind the prior is seen through
+    trans_albedo: str = "off"            # the albedo prior in L_trans's masks: off (glint_mi's) = not read at all: the
+    #                                      transparency comes from the SfM cue (trans_cue: auto), as on a capture
+    #                                      with no albedo prior; masks = the paper's LowA & HighB rule (transparent
+    #                                      needs albedo < 0.05). An estimator reports the surface behind clear glass,
+    #                                      not ~0: on the tuning rooms 7301-7303 reading it left t IoU 0.07, the
+    #                                      cue alone 0.50 (docs/results/tuning_73xx)
+    cue_margin: float = 0.1              # an SfM feature this fraction of its depth behind the prior is seen through
     cue_radius: float = 0.04             # a pixel takes the label of its nearest feature within this x image width
-    cue_votes: str = "view"              # view: each observation labelled by its view's prior; point: a 3D point is
+    cue_votes: str = "point"             # view: each observation labelled by its view's prior; point: a 3D point is
     #                                      seen through in every view when cue_point_share of its views say so
     cue_point_share: float = 0.2
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
@@ -357,6 +363,7 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
         need(self.cue_votes in ("view", "point"), "cue_votes", "use view or point")
+        need(self.trans_albedo in ("off", "masks"), "trans_albedo", "use off (glint_mi) or masks (the paper)")
         need(0 < self.cue_point_share <= 1, "cue_point_share", "is a share of a point's views: (0, 1]")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
         need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
@@ -418,6 +425,9 @@ MIGRATIONS = (
      lambda v: {**v, "densify_grad_rel": 0.0, "densify_grad": v.get("densify_grad", 2e-4)}),  # its absolute floor
     ("prior_layer", lambda v: "prior_layer" not in v,
      lambda v: {**v, "prior_layer": "interface"}),  # its priors supervised the interface everywhere
+    ("the albedo prior left out of L_trans's masks", lambda v: "trans_albedo" not in v,
+     lambda v: {**v, "trans_albedo": "masks", "cue_margin": v.get("cue_margin", 0.05),
+                "cue_votes": v.get("cue_votes", "view")}),  # it read the albedo and voted per view, margin 0.05
     ("the blend option", lambda v: "fresnel" in v and "blend" not in v,
      lambda v: {**{k: x for k, x in v.items() if k != "fresnel"}, "blend": "fresnel" if v["fresnel"] else "envgs"}),
 )

@@ -16,11 +16,12 @@ NOT_OURS = dict(w_sfm_depth=0.0)  # glint_mi's SfM depth term is no baseline's
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
 GLINT_PHOTO = dict(w_l1=1.2, w_dssim=0.4)  # GLINT's photometric weights (TrainConfig's defaults; tested equal)
 # prior parity: GLINT's depth and normal terms with GLINT's photometric weights, so the priors weigh as much against
-# the photos as in GLINT (Adam is scale-free: only these ratios matter). The albedo prior goes to no baseline: GLINT
-# reads it only as a transparency cue (L_trans's masks, components: auto), and no baseline here has a transparency a
-# cue could supervise except TSGS, whose paper takes a segmenter's masks instead
+# the photos as in GLINT (Adam is scale-free: only these ratios matter). The albedo prior goes to no baseline: only
+# glint-paper reads it (trans_albedo: masks, the paper's L_trans masks; glint_mi's GLINT leaves it out), and no
+# baseline here has a transparency a cue could supervise except TSGS, whose paper takes a segmenter's masks instead
 WITH_PRIORS = dict(w_depth=0.1, w_normal=0.3, priors="all", **GLINT_PHOTO)
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
+             trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage
              prior_layer="interface")  # the priors supervise the interface everywhere
 METHOD_3DGS = dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS,

@@ -519,18 +519,20 @@ def test_dense_array_step_is_the_same_in_numpy_and_native(monkeypatch):
 
 def test_quality_of_the_demo_room(tmp_path):
     """`make demo`'s configuration (the bundled room, quick preset, ~75 s alone on 2 cores): every metric near what
-    is measured (two runs with the current schedule: PSNR 27.9-28.2, normal MAE 6.4-6.8, AbsRel 0.026-0.027, t IoU
-    0.73-0.77, t off glass 0.02-0.03; the quick preset's seed spread is +-0.8 dB, +-0.16 t IoU; with the refine
-    stage's freeze it measured 26.5-26.8 dB). A veil over the room (t off glass) or transparency missing on the glass
-    fails it."""
+    is measured. The room was regenerated on 2026-11-26 with the realistic priors (an estimator's errors, the same
+    on a surface in every view; the albedo reports the surface behind the glass) and SfM tracks, which GLINT's
+    default transparency cue reads; seeds 0 and 1 measured PSNR 27.45 / 27.79, normal MAE 20.0 / 20.3 (the priors'
+    20.8), AbsRel 0.049 / 0.051, t IoU 0.32 / 0.33, t off glass 0.025 / 0.030, t on glass 0.35 / 0.35 (the quick
+    preset's seed spread was +-0.8 dB, +-0.16 t IoU). A veil over the room (t off glass) or transparency missing on
+    the glass fails it."""
     tr = Trainer(tmp_path / "q", TrainConfig.for_preset("quick"),
                  scene=read_scene(ROOT / "scenes" / "glass_room" / "optimize.xml"), log=lambda *a: None)
     tr.train(progress=False)
     from glint_mi.evaluate import evaluate
 
     m = evaluate(tr.integ_for_eval(), tr.ds.test_views, write=False)["metrics"]
-    assert m["psnr"] > 26.3 and m["normal_mae"] < 9.0 and m["absrel"] < 0.05, m
-    assert m["t_iou"] > 0.45 and m["t_off_glass"] < 0.08 and m["t_on_glass"] > 0.45, m
+    assert m["psnr"] > 26.6 and m["normal_mae"] < 22.5 and m["absrel"] < 0.06, m
+    assert m["t_iou"] > 0.2 and m["t_off_glass"] < 0.08 and m["t_on_glass"] > 0.2, m
 
 
 def test_epochs_budget_sets_iterations(room, tmp_path):
@@ -824,12 +826,36 @@ def test_sfm_see_through_cue(room, rng):
     # the trainer: trans_cue auto builds the cue whenever there is a transmission set, albedo prior or not, from
     # the dataset's tracks (none here: reported, not fatal, and L_trans keeps the paper's depth gap: no cue array,
     # so the masks do not go silent)
-    tr = Trainer(room.parent / "cue_run", tiny_cfg(iterations=2, patches=4, priors="all", components="all"),
+    tr = Trainer(room.parent / "cue_run", tiny_cfg(iterations=2, patches=4, priors="all", components="all",
+                                                   trans_albedo="off"),
                  scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
-    assert "albedo" in tr.bank.has
+    assert "albedo" not in tr.bank.has and tr.report["albedo_prior"].startswith("not read")  # trans_albedo: off
     assert tr.report["trans_cue"]["views"] == 0 and "why" in tr.report["trans_cue"]
     assert tr.bank.cue is None and tr.bank.sample(rng, 2, 4).cue is None
     assert bank.see_through_cue({}, 0.05, 0.1)["views"] == 0 and bank.cue is None
+
+
+def test_unread_albedo_trains_as_a_capture_without_one(room, tmp_path):
+    """trans_albedo: off (the default) leaves the albedo prior out: three steps with L_trans from the first give the
+    losses and L_trans mask coverage of the same room with its priors/albedo removed (to the 1e-4 of two LLVM runs),
+    and the paper's rule (trans_albedo: masks) on the same room gives other masks, so the comparison can fail."""
+    import shutil
+
+    bare = tmp_path / "bare"
+    shutil.copytree(room, bare / "room")
+    shutil.copy(room.parent / "scene.xml", bare / "scene.xml")
+    shutil.rmtree(bare / "room" / "priors" / "albedo")
+    stages = dict(iterations=3, patches=4, components="all", warmup=0.0, transmission_from=0.0, trans_from=0.0,
+                  log_every=1)
+    runs = {}
+    for name, where, albedo in (("off", room.parent, "off"), ("absent", bare, "off"), ("masks", room.parent, "masks")):
+        tr = Trainer(tmp_path / name, tiny_cfg(**stages, trans_albedo=albedo), scene=read_scene(where / "scene.xml"),
+                     log=lambda *a: None)
+        assert ("albedo" in tr.bank.has) == (name == "masks")
+        tr.train(progress=False)
+        runs[name] = np.array([[h["total"], h["mask_t"]] for h in tr.history])
+    np.testing.assert_allclose(runs["off"], runs["absent"], rtol=1e-4)
+    assert np.abs(runs["masks"][:, 1] - runs["off"][:, 1]).max() > 1e-3, runs
 
 
 def test_see_through_cue_point_votes(room):
@@ -1150,7 +1176,7 @@ def test_the_strategy_owns_its_schedule():
 
 def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     """A run whose config.json predates every migration (no epochs, train_downsample, trans_cue 'sfm', no relative
-    floor, no prior_layer, a fresnel boolean) resumes and trains on, read as it trained (config.migrate)."""
+    floor, no prior_layer, a fresnel boolean, the albedo read with the cue's former settings) resumes and trains on, read as it trained (config.migrate)."""
     from glint_mi.config import MIGRATIONS
 
     run = tmp_path / "old"
@@ -1160,14 +1186,16 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     tr.save_checkpoint()
     del tr
     saved = json.loads((run / "config.json").read_text())
-    for k in ("epochs", "densify_grad_rel", "prior_layer", "blend", "downscale", "eval_full"):
+    for k in ("epochs", "densify_grad_rel", "prior_layer", "blend", "downscale", "eval_full", "trans_albedo",
+              "cue_votes", "cue_margin"):
         saved.pop(k)
     saved.update(train_downsample=1, trans_cue="sfm", fresnel=True, densify_grad=2e-4)  # 2e-4: the old default
     (run / "config.json").write_text(json.dumps(saved))
     cfg = TrainConfig.load(run / "config.json")
     assert (cfg.epochs, cfg.downscale, cfg.trans_cue, cfg.densify_grad_rel, cfg.densify_grad, cfg.prior_layer,
-            cfg.blend) == (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel")
-    assert len(MIGRATIONS) == 6
+            cfg.blend, cfg.trans_albedo, cfg.cue_votes, cfg.cue_margin) == \
+        (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05)
+    assert len(MIGRATIONS) == 7
     again = Trainer(run, cfg, resume=True, log=lambda *a: None)
     assert again.it == 2
     again.train(progress=False)

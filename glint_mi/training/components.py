@@ -50,9 +50,9 @@ class ComponentsPolicy:
             return {}
         if has_albedo or (c.trans_cue == "auto" and has_cue):
             return {}
-        why = ("no glass cue: no albedo prior" + (" and no depth prior aligned to SfM tracks" if c.trans_cue == "auto"
-                                                  else " (trans_cue: auto adds the SfM see-through cue of a depth "
-                                                       "prior)")
+        why = ("no glass cue: no albedo prior" + (" read (trans_albedo: off)" if c.trans_albedo == "off" else "")
+               + (" and no depth prior aligned to SfM tracks" if c.trans_cue == "auto"
+                  else " (trans_cue: auto adds the SfM see-through cue of a depth prior)")
                + ", so L_trans could only compare two sets that fit the same surfaces (components: all keeps them)")
         drops = {"transmission": why}
         if "reflection" in roles:  # what the glass would mirror: no glass, no reflection set

@@ -15,6 +15,12 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
     """The run's ray bank with every input its losses read set up; ``report`` gains what each step found.
     ``resume_affine``: the image-space depth alignment a resumed run had refitted (``depth_align: image``)."""
     bank = RayBank(ds.train_views, ds.root, use_priors=cfg.priors == "all", glass_masks=cfg.trans_masks)
+    if cfg.trans_albedo == "off" and bank.priors.pop("albedo", None) is not None:
+        # the albedo prior's one reader is L_trans's mask rule (and components: auto's glass cue): left out, the run
+        # is the run of a capture without one
+        report["albedo_prior"] = "not read (trans_albedo: off)"
+        log("albedo prior not read (trans_albedo: off): the transparency comes from the SfM see-through cue; "
+            "trans_albedo: masks reads it as the paper does")
     report["priors"] = sorted(bank.has)
     if not bank.has and has_transmission:
         log(f"no priors ({ds.root}/priors holds no depth, normal or albedo maps"
