@@ -1187,14 +1187,14 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     del tr
     saved = json.loads((run / "config.json").read_text())
     for k in ("epochs", "densify_grad_rel", "prior_layer", "blend", "downscale", "eval_full", "trans_albedo",
-              "cue_votes", "cue_margin"):
+              "cue_votes", "cue_margin", "normal_loss", "normal_early"):
         saved.pop(k)
     saved.update(train_downsample=1, trans_cue="sfm", fresnel=True, densify_grad=2e-4)  # 2e-4: the old default
     (run / "config.json").write_text(json.dumps(saved))
     cfg = TrainConfig.load(run / "config.json")
     assert (cfg.epochs, cfg.downscale, cfg.trans_cue, cfg.densify_grad_rel, cfg.densify_grad, cfg.prior_layer,
-            cfg.blend, cfg.trans_albedo, cfg.cue_votes, cfg.cue_margin) == \
-        (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05)
+            cfg.blend, cfg.trans_albedo, cfg.cue_votes, cfg.cue_margin, cfg.normal_loss, cfg.normal_early) == \
+        (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05, "l1_cos", "off")
     assert len(MIGRATIONS) == 7
     again = Trainer(run, cfg, resume=True, log=lambda *a: None)
     assert again.it == 2
