@@ -521,17 +521,17 @@ def test_quality_of_the_demo_room(tmp_path):
     """`make demo`'s configuration (the bundled room, quick preset, ~75 s alone on 2 cores): every metric near what
     is measured. The room was regenerated on 2026-11-26 with the realistic priors (an estimator's errors, the same
     on a surface in every view; the albedo reports the surface behind the glass) and SfM tracks, which GLINT's
-    default transparency cue reads; seeds 0 and 1 measured PSNR 27.45 / 27.79, normal MAE 20.0 / 20.3 (the priors'
-    20.8), AbsRel 0.049 / 0.051, t IoU 0.32 / 0.33, t off glass 0.025 / 0.030, t on glass 0.35 / 0.35 (the quick
-    preset's seed spread was +-0.8 dB, +-0.16 t IoU). A veil over the room (t off glass) or transparency missing on
-    the glass fails it."""
+    default transparency cue reads; with the paper's normal loss (the default since then) seeds 0 and 1 measured
+    PSNR 27.75 / 28.75, normal MAE 17.3 / 17.2 (the priors' 20.8; 20.0 / 20.3 with the former loss), AbsRel 0.046 /
+    0.045, t IoU 0.32 / 0.34, t off glass 0.022 / 0.016, t on glass 0.33 / 0.37 (the quick preset's seed spread was
+    +-0.8 dB, +-0.16 t IoU). A veil over the room (t off glass) or transparency missing on the glass fails it."""
     tr = Trainer(tmp_path / "q", TrainConfig.for_preset("quick"),
                  scene=read_scene(ROOT / "scenes" / "glass_room" / "optimize.xml"), log=lambda *a: None)
     tr.train(progress=False)
     from glint_mi.evaluate import evaluate
 
     m = evaluate(tr.integ_for_eval(), tr.ds.test_views, write=False)["metrics"]
-    assert m["psnr"] > 26.6 and m["normal_mae"] < 22.5 and m["absrel"] < 0.06, m
+    assert m["psnr"] > 26.8 and m["normal_mae"] < 19.5 and m["absrel"] < 0.055, m
     assert m["t_iou"] > 0.2 and m["t_off_glass"] < 0.08 and m["t_on_glass"] > 0.2, m
 
 
