@@ -117,7 +117,9 @@ def test_stage_schedule(variant):
     assert s["name"] == "joint" and s["direct"]
     assert not stage(at(c.trans_from) - 1)["trans"] and stage(at(c.trans_from))["trans"]
     assert stage(at(c.plausibility_from))["plausibility"]
-    assert not stage(at(c.normal_from) - 1)["normal"] and stage(at(c.normal_from))["normal"]
+    # the paper's (the default since 2026-11-26): the normal term from the start, unmasked until normal_from
+    assert stage(0)["normal"] and not stage(at(c.normal_from) - 1)["normal_masked"]
+    assert stage(at(c.normal_from))["normal"] and stage(at(c.normal_from))["normal_masked"]
     assert not stage(at(c.treg_from) - 1)["treg"] and stage(at(c.treg_from))["treg"]
     assert not stage(at(c.densify_until) - 1)["t_gate"] and stage(at(c.densify_until))["t_gate"]
     last = stage(599)
@@ -138,9 +140,9 @@ def test_stage_schedule(variant):
     assert stage(0)["depth"] and stage(0)["consistency"]
     fake.dropped = {"transmission": "x", "reflection": "y"}  # dropped sets are never traced again
     assert stage(599)["traced"] == {"interface"} and not stage(599)["trans"]
-    early = TrainConfig.for_preset("tiny", variant, iterations=600, normal_early="unmasked")
-    fake.cfg = early
-    assert stage(0)["normal"] and not stage(0)["normal_masked"] and stage(at(c.normal_from))["normal_masked"]
+    off = TrainConfig.for_preset("tiny", variant, iterations=600, normal_early="off")  # glint_mi's until then
+    fake.cfg = off
+    assert not stage(at(c.normal_from) - 1)["normal"] and stage(at(c.normal_from))["normal"]
 
 
 def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
