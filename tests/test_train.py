@@ -607,8 +607,8 @@ def test_opacity_shells_option_reaches_every_shape(room, tmp_path):
 @pytest.mark.parametrize("traversal", ["bvh", "auto"])
 def test_device_and_host_updates_train_the_same(room, tmp_path, traversal):
     """update: device (Dr.Jit chain rule, Adam, packing) against update: host (numpy / native C++, float64) over
-    three steps with a densification between them: the same losses to 1e-4 and the same set sizes, and two device
-    runs agree to 1e-4 too (two threads sum gradients in any order, so not bit for bit). With traversal bvh the
+    three steps with a densification between them: the same losses to 3e-4 and the same set sizes, and two device
+    runs agree to 3e-4 too (two threads sum gradients in any order, so not bit for bit). With traversal bvh the
     device's packed shells once reached Mitsuba's BVH build before the kernel writing them had finished: the
     second loss was 0.96-1.09 against 0.816, a different one every run."""
     runs = {}
@@ -620,8 +620,10 @@ def test_device_and_host_updates_train_the_same(room, tmp_path, traversal):
         runs[name] = ([h["total"] for h in tr.history], {r: len(g) for r, g in tr.active_sets().items()})
     assert runs["device"][1] == runs["device_again"][1] == runs["host"][1]
     # A GPU's float atomics sum the gradients in any order, and a densification between the steps carries that
-    # rounding on: measured on an H100, the third loss 0.85232 against 0.85208 (2.9e-4). 1e-3 there, 1e-4 on LLVM.
-    rtol = 1e-4 if LLVM else 1e-3
+    # rounding on: measured on an H100, the third loss 0.85232 against 0.85208 (2.9e-4). 1e-3 there; on LLVM two
+    # threads do the same: 8 device runs, in two processes at once on 2 cores, spread the third loss by 1.1-1.6e-4
+    # (with either normal schedule; CI once failed 1e-4 at 1.04e-4), so 3e-4.
+    rtol = 3e-4 if LLVM else 1e-3
     np.testing.assert_allclose(runs["device"][0], runs["host"][0], rtol=rtol)
     np.testing.assert_allclose(runs["device_again"][0], runs["device"][0], rtol=rtol)
     with pytest.raises(ConfigError, match="update"):
