@@ -11,7 +11,8 @@ after :meth:`DeviceUpdate.pull`, and a set whose rows changed on the host is sen
 The arithmetic is :func:`glint_mi.training.optim.raw_gradients` followed by
 :meth:`glint_mi.training.optim.Adam.step`, operation by operation in the reference's precision (float64 where numpy
 computes in float64, float32 where it does): on LLVM the two are equal bit for bit, on CUDA (fast-math float32
-division and square root) to float32 rounding (tests/test_device_step.py). Which one a run uses is the config's ``update`` (device | host).
+division and square root) to float32 rounding (tests/test_device_step.py). Which one a run uses is the config's
+``update`` (device | host).
 
 Every field is one flat array of N x C values (row-major, as the host array's memory); per-row quantities (the
 touched rows, the step counts) are gathered by ``i // C``. Values that change every step (the position learning
