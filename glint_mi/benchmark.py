@@ -27,7 +27,7 @@ from glint_mi.config import DEFAULT_VARIANT, VARIANTS
 from glint_mi.methods import METHODS, TABLE_METHODS, config_for
 
 COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae_glass", "absrel_glass", "t_iou",
-           "t_off_glass")
+           "t_off_glass", "psnr_glass", "psnr_off_glass")
 
 
 def scenes_in(data: Path) -> list[Path]:

@@ -170,6 +170,31 @@ def test_transparency_off_and_on_glass_metrics():
     assert np.isclose(m["t_off_glass"], 0.2) and np.isclose(m["t_on_glass"], 0.9)
 
 
+def test_psnr_split_on_and_off_glass():
+    """psnr_glass / psnr_off_glass: the PSNR over the glass pixels and over the rest, each from its own pixels'
+    error alone (an error on the glass leaves the other untouched); NaN where a view has no glass."""
+    from glint_mi.evaluation.metrics import view_metrics
+    H, W = 6, 8
+    glass = np.zeros((H, W))
+    glass[:, :2] = 1
+    depth = np.ones((H, W))
+    n = np.zeros((H, W, 3))
+    n[..., 2] = 1
+    photo = np.full((H, W, 3), 0.5)
+    pred = photo.copy()
+    pred[:, :2] += 0.1                             # error 0.1 on the glass: 20 dB there
+    pred[:, 2:] -= 0.01                            # error 0.01 elsewhere: 40 dB
+    t = np.zeros((H, W))
+    m = view_metrics({"rgb": pred, "depth": depth, "normal": n, "transparency": t},
+                     {"depth": depth, "normal": n, "glass": glass}, photo)
+    assert np.isclose(m["psnr_glass"], 20.0) and np.isclose(m["psnr_off_glass"], 40.0), m
+    mse = (2 * 0.1 ** 2 + 6 * 0.01 ** 2) / 8
+    assert np.isclose(m["psnr"], -10 * np.log10(mse))
+    m0 = view_metrics({"rgb": pred, "depth": depth, "normal": n, "transparency": t},
+                      {"depth": depth, "normal": n, "glass": np.zeros((H, W))}, photo)
+    assert np.isnan(m0["psnr_glass"]) and np.isclose(m0["psnr"], m0["psnr_off_glass"])
+
+
 def test_plausibility_weight_reads_the_interface_only():
     """plausibility_mask: interface pulls G_trans where the interface is a surface, by 1 - t, without gradient."""
     t, a = mi.Float([0.0, 0.25, 1.0, 0.1]), mi.Float([1.0, 0.8, 0.9, 0.2])

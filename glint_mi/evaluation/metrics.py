@@ -11,14 +11,21 @@ import math
 import numpy as np
 
 METRICS = ("psnr", "ssim", "normal_mae", "normal_mae_glass", "absrel", "absrel_glass", "t_iou", "t_f1",
-           "t_off_glass", "t_on_glass")
+           "t_off_glass", "t_on_glass", "psnr_glass", "psnr_off_glass")
 HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "normal_mae": False, "normal_mae_glass": False, "absrel": False,
                     "absrel_glass": False, "t_iou": True, "t_f1": True, "t_off_glass": False, "t_on_glass": True,
+                    "psnr_glass": True, "psnr_off_glass": True,
                     "fps": True, "train_s": False}
 
 
-def psnr(pred: np.ndarray, gt: np.ndarray) -> float:
-    mse = float(np.mean((np.clip(pred, 0, 1) - np.clip(gt, 0, 1)) ** 2))
+def psnr(pred: np.ndarray, gt: np.ndarray, mask: np.ndarray | None = None) -> float:
+    """PSNR of sRGB images in [0, 1]; with ``mask`` [H,W] over those pixels only (NaN when it has none)."""
+    d = (np.clip(pred, 0, 1) - np.clip(gt, 0, 1)) ** 2
+    if mask is not None:
+        if not mask.any():
+            return float("nan")
+        d = d[mask]
+    mse = float(np.mean(d))
     return float("inf") if mse == 0 else 10.0 * math.log10(1.0 / mse)
 
 
@@ -83,6 +90,9 @@ def view_metrics(pred: dict, gt: dict, image: np.ndarray) -> dict[str, float]:
     off = valid & ~glass
     out["t_off_glass"] = float(t[off].mean()) if off.any() else float("nan")
     out["t_on_glass"] = float(t[glass].mean()) if glass.any() else float("nan")
+    # where the photometric error lies: the glass pixels and the rest (the background and surfaces seen directly)
+    out["psnr_glass"] = psnr(pred["rgb"], image, glass)
+    out["psnr_off_glass"] = psnr(pred["rgb"], image, ~glass)
     return out
 
 
