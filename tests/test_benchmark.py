@@ -465,3 +465,15 @@ def test_cue_accuracy_counts_the_cue_against_the_glass(room, rng):
     flat = cue_accuracy(room, 0.05, 0.04, observations(1.0), affine)
     assert flat["through_on_glass"] < 0.1 and flat["opaque_on_glass"] > 0.5 * flat["opaque_off_glass"] > 0.1
     assert flat["opaque_on_glass"] > 5 * r["opaque_on_glass"]
+
+
+def test_case_coverage_from_the_layout():
+    """benchmarks/case_coverage.py (how the tuning room 7310 was chosen): shares in (0, 1], the same draws as the
+    generator (deterministic), and a case seen from 0.97 m (9503) fills more of the view than one from 2.2 m (7301)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from case_coverage import case_coverage
+    near, far = case_coverage(9503), case_coverage(7301)
+    assert 0 < far["coverage"] < near["coverage"] <= 1
+    assert near["distance"] < far["distance"]
+    assert case_coverage(9503) == near
+    assert 0.6 < near["coverage"] and far["coverage"] < 0.3
