@@ -23,7 +23,8 @@ WITH_PRIORS = dict(w_depth=0.1, w_normal=0.3, priors="all", **GLINT_PHOTO)
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
              trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage
-             prior_layer="interface")  # the priors supervise the interface everywhere
+             prior_layer="interface",  # the priors supervise the interface everywhere
+             normal_weight="near")  # the release's depth scale of the normal prior and the consistency
 METHOD_3DGS = dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS,
                    **NO_GLASS, **PLAIN_PHOTO)
 # 2DGS (its release): normal consistency 0.05 on the median depth (depth_ratio 1) from 7k of 30k iterations, depth
@@ -96,7 +97,8 @@ METHODS = {m.name: m for m in [
     Method("glint-paper", PAPER,
            "GLINT with the paper's choices: per-image depth fit over the whole image (MonoSDF), the supplement's "
            "normal loss (1 - cos, unmasked before 10k/60k), t free, the paper's L_trans masks, all three sets, the "
-           "interface frozen from 40k/60k (the supplement's refine stage)",
+           "interface frozen from 40k/60k (the supplement's refine stage), the normal prior and the consistency "
+           "weighted by the release's near-to-far depth scale (normal_weight: near; since 2026-11-27)",
            "the whole-image depth fit is refitted every 2 % of the run on a grid of <= 2048 pixels per view"),
     Method("3dgs-priors", {**METHOD_3DGS, **WITH_PRIORS},
            "3DGS given the same depth and normal priors as GLINT (GLINT's terms, prior and photometric weights)",

@@ -70,13 +70,14 @@ def takes_behind(err_i, err_t, ok):
 
 
 def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_cos", masked: bool = True,
-                behind=None):
+                behind=None, weight=None):
     """Normal prior: mean over the valid pixels of (1 - <n, p>) (``form`` "cos", the supplement's) or
     |n - p|_1 + (1 - <n, p>) ("l1_cos", glint_mi's), with the cosine mask [<n, p> >= tau_n] when ``masked``.
 
     ``normal`` and ``prior`` are unit vectors in the same (camera) frame; the mask is detached. ``behind`` =
     (n_behind, ok): where ``ok``, the layer whose normal agrees better with the prior takes the term
-    (nearer_layer; the cosine mask then reads that layer's cosine).
+    (nearer_layer; the cosine mask then reads that layer's cosine). ``weight`` (detached, per pixel; e.g.
+    :func:`near_weight`) scales each pixel's term; the mean still divides by the number of masked pixels.
     """
     def term_of(n):
         cos = dr.dot(n, prior)
@@ -94,6 +95,8 @@ def normal_loss(normal, prior, tau_n: float = 0.3, valid=True, form: str = "l1_c
     mask = mi.Bool(valid) & dr.isfinite(dr.detach(cos))  # (as wide as the rays)
     if masked:
         mask &= dr.detach(cos) >= tau_n
+    if weight is not None:
+        term = term * dr.detach(weight)
     return dr.sum(dr.select(mask, term, 0.0)) / dr.maximum(dr.count(mask), 1), mask
 
 
@@ -171,9 +174,29 @@ def take(v, idx):
     return dr.gather(type(v), v, idx)
 
 
-def depth_normal_consistency(origin, d, dist, normal, valid, nb):
+def near_weight(depth, valid, p: float = 0.01):
+    """The release's depth scale of its normal terms (``normalize_depth``): 1 - (D - near) / (far - near) clipped
+    to [0, 1], near 1 and far 0, with near / far the ``p`` / 1 - ``p`` quantiles of ``depth`` over the ``valid``
+    rays (the release: of every pixel of the image; its quantile is the k-th smallest and k-th largest value,
+    k = int(p N)). Detached; the sort and the two gathers stay on the device (no read-back)."""
+    D = dr.detach(mi.Float(depth))
+    ok = mi.Bool(valid) & dr.isfinite(D)
+    s = dr.sort(dr.select(ok, D, dr.inf))  # the valid depths first, ascending
+    n = mi.UInt32(dr.count(ok))
+    k = mi.UInt32(dr.floor(mi.Float(n) * p))
+    k1 = dr.maximum(k, 1)
+    last = dr.maximum(n, 1) - 1
+    near = dr.gather(mi.Float, s, dr.minimum(k1 - 1, last))
+    far = dr.gather(mi.Float, s, dr.select(n > k1, n - k1, 0))  # (unsigned: no n - k1 when n <= k1)
+    w = 1.0 - (D - near) / dr.maximum(far - near, 1e-12)
+    return dr.select(ok, dr.clip(w, 0.0, 1.0), 0.0)
+
+
+def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None):
     """2DGS normal consistency on patches: 1 - <n, n_depth>, n_depth from the cross product of the 3D points of
-    a pixel and its right and lower neighbours (oriented to face the camera). ``nb`` = patch_neighbours(...)."""
+    a pixel and its right and lower neighbours (oriented to face the camera). ``nb`` = patch_neighbours(...).
+    ``weight`` (detached, per ray; e.g. :func:`near_weight`) scales each pixel's term; the mean still divides by the
+    number of pixels where the term is defined."""
     i, r, b = (mi.UInt32(x) for x in nb)
     pts = origin + d * dist
     P0, Pr, Pb = (take(pts, k) for k in (i, r, b))
@@ -185,6 +208,8 @@ def depth_normal_consistency(origin, d, dist, normal, valid, nb):
     ok = take(mi.Bool(valid), i) & take(mi.Bool(valid), r) & take(mi.Bool(valid), b)
     ok &= dr.isfinite(n_d.x)
     term = dr.select(ok, 1.0 - dr.dot(n0, n_d), 0.0)
+    if weight is not None:
+        term = term * take(dr.detach(mi.Float(weight)), i)
     return dr.sum(term) / dr.maximum(dr.count(ok), 1)
 
 
@@ -248,13 +273,16 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
         A = dr.detach(out["alpha"])
         parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
+        # the release's depth scale of the normal terms (normal_weight: near), from the interface's depth
+        w_near = near_weight(out["depth"], A > 0.5) if c.normal_weight == "near" and (
+            st["consistency"] or st["normal"]) else None
         if st["consistency"]:
             if c.consistency_depth == "median":  # 2DGS: normals of the median depth (where T falls to 0.5)
                 dist = leaves["median"] = _leaf(out["median"])
             else:
                 dist = depth / dr.dot(ray.d, fwd)
             parts["consistency"] = c.w_consistency * depth_normal_consistency(
-                ray.o, ray.d, dist, normal, A > 0.5, nb)
+                ray.o, ray.d, dist, normal, A > 0.5, nb, w_near)
         if st.get("distortion"):  # 2DGS's depth distortion of the interface's hits, mean over the rays
             leaves["distortion"] = _leaf(out["distortion"])
             parts["distortion"] = c.w_dist * dr.mean(leaves["distortion"])
@@ -302,14 +330,15 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             if behind_ok is not None:
                 behind = (mi.Vector3f(dr.dot(axes[0], Dn), dr.dot(axes[1], Dn), dr.dot(axes[2], Dn)), behind_ok)
             parts["normal"] = c.w_normal * prior_w * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
-                                                                 st["normal_masked"], behind)[0]
+                                                                 st["normal_masked"], behind, w_near)[0]
         if "transmission" in st["traced"]:
             if st["direct"]:
                 parts["direct"] = c.w_direct * (c.w_l1 * l1(Dc, gt) + c.w_dssim * dssim(Dc, gt, p))
-                if st["consistency"]:
+                if st["consistency"]:  # (normal_weight near: the release scales it by G_trans's own depth)
+                    w_t_near = near_weight(Dd, dr.detach(DA) > 0.5) if c.normal_weight == "near" else None
                     parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
                         depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
-                                                 dr.detach(DA) > 0.5, nb)
+                                                 dr.detach(DA) > 0.5, nb, w_t_near)
             need_masks = st["plausibility"] and c.plausibility_mask == "opaque"
             if (st["trans"] and c.trans_masks == "depth_gap") or need_masks:
                 w_t, w_o, stats["mask_t"], allowed = batch_transparency_masks(c, b, out, extent, st["t_gate"])
