@@ -97,6 +97,21 @@ def _traced_batch(tr, st, need=frozenset()):
     return b, ray, fwd, tr.integ.trace(ray, mi.Bool(True), need=need, forward=fwd)
 
 
+def _room_batch_at(tmp_path, c, frac: float):
+    """A trainer of the bundled room with config ``c`` at ``frac`` of its run, its stage there and one traced batch:
+    (trainer, stage, batch, rays, forward axes, buffers)."""
+    from pathlib import Path
+
+    from glint_mi.scene import read_scene
+    from glint_mi.training.trainer import Trainer
+
+    spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
+    tr = Trainer(tmp_path / "run", c, scene=spec, log=lambda *a, **k: None)
+    tr.it = c.at(frac)
+    st = tr.stage()
+    return (tr, st) + _traced_batch(tr, st)
+
+
 @pytest.mark.parametrize("variant", ["glint_mi", "supplement", "release"])
 def test_stage_schedule(variant):
     """Which sets are traced and trained and which terms are on, iteration by iteration, for 600 iterations."""
@@ -229,10 +244,8 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     """prior_decay: the depth and normal prior weights are 1 until that fraction of the run, then fall linearly to 0
     at its end; the objective's prior terms scale by exactly that factor, and a new factor launches the same
     kernels (an opaque scalar: no compilation per iteration)."""
-    from pathlib import Path
     from types import SimpleNamespace
 
-    from glint_mi.scene import read_scene
     from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, components="interface")
@@ -243,12 +256,8 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     fake.cfg = TrainConfig.for_preset("tiny", iterations=200)
     assert scale(199) == 1.0  # the default: constant weights (the paper)
 
-    spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
-    tr = Trainer(tmp_path / "run", c, scene=spec, log=lambda *a, **k: None)
-    tr.it = c.at(0.6)
-    st = tr.stage()
+    tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["depth"] and st["normal"]
-    b, ray, fwd, out = _traced_batch(tr, st)
     terms = lambda s: L.batch_objective(c, b, out, {**st, "prior_scale": s}, ray, fwd, len(tr.bank.views),
                                         tr.extent)[0]
     full = terms(1.0)
@@ -405,11 +414,6 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
     the release's normalize_depth over the valid rays (0 elsewhere); in the objective it scales the normal prior and
     the depth-normal consistency per pixel, so a ray at or beyond the far quantile sends no gradient to its normal
     while it does under the default; and the weighted normal prior's gradient matches central differences."""
-    from pathlib import Path
-
-    from glint_mi.scene import read_scene
-    from glint_mi.training.trainer import Trainer
-
     rng = np.random.default_rng(3)
     d = rng.uniform(0.5, 9.0, 4096).astype(np.float32)
     w = L.near_weight(mi.Float(d), mi.Bool(True)).numpy()
@@ -436,12 +440,8 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
 
     # in the objective, one traced batch of the bundled room past the normal prior's start
     c = TrainConfig.for_preset("tiny", iterations=200, components="interface")
-    spec = read_scene(str(Path(__file__).resolve().parent.parent / "scenes" / "glass_room" / "optimize.xml"))
-    tr = Trainer(tmp_path / "run", c, scene=spec, log=lambda *a, **k: None)
-    tr.it = c.at(0.6)
-    st = tr.stage()
+    tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["normal"] and st["consistency"]
-    b, ray, fwd, out = _traced_batch(tr, st)
     run = lambda cfg: L.batch_objective(cfg, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)
     (tu, au, _), (tn, an, _) = run(c), run(dataclasses.replace(c, normal_weight="near"))
     for k in ("normal", "consistency"):
