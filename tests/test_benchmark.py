@@ -478,3 +478,43 @@ def test_case_coverage_from_the_layout():
     assert near["distance"] < far["distance"]
     assert case_coverage(9503) == near
     assert 0.6 < near["coverage"] and far["coverage"] < 0.3
+
+
+def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
+    """benchmarks/tuning_rule.py: a room's figure is the mean over the seeds both folders finished; a PSNR gain of
+    0.3 dB in all but one room passes only while the geometry stays within the bounds; a 0.6 deg normal gain in two
+    of three rooms passes the geometry rule; a room missing on one side is left out and named."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import tuning_rule
+
+    base = dict(psnr=28.0, normal_mae=30.0, absrel=0.2, normal_mae_glass=40.0, absrel_glass=0.3, t_iou=0.3)
+
+    def write(folder, room, seed, **delta):
+        m = {k: v + delta.get(k, 0.0) for k, v in base.items()}
+        d = tmp_path / folder / "runs" / f"scene_{room}" / ("glint" if seed == 0 else f"glint@seed{seed}")
+        d.mkdir(parents=True)
+        (d / "metrics.json").write_text(json.dumps({"metrics": m}))
+
+    for room in ("1", "2", "3"):
+        write("base", room, 0)
+        write("base", room, 1, psnr=-1.0)                          # seed 1 only in the base: must not count
+        write("gain", room, 0, psnr=0.4 if room != "3" else 0.35)
+        write("costly", room, 0, psnr=0.5, normal_mae=0.6)          # PSNR bought with 0.6 deg of normals
+        write("normals", room, 0, normal_mae=-0.9 if room != "3" else 0.1)
+    write("base", "4", 0)                                           # no switch run in room 4
+    pairs = {r: tuning_rule.room_pair(tmp_path / "base", tmp_path / "gain", r, "glint") for r in "123"}
+    assert all(p[2] == [0] for p in pairs.values()) and tuning_rule.room_pair(
+        tmp_path / "base", tmp_path / "gain", "4", "glint") is None
+    v = tuning_rule.judge(pairs, agree=2)
+    assert v["psnr_rule"] and v["adopted"] and not v["geometry_rule"] and abs(v["dpsnr"] - 0.3833) < 1e-3
+    costly = {r: tuning_rule.room_pair(tmp_path / "base", tmp_path / "costly", r, "glint") for r in "123"}
+    assert not tuning_rule.judge(costly, agree=2)["adopted"]
+    normals = {r: tuning_rule.room_pair(tmp_path / "base", tmp_path / "normals", r, "glint") for r in "123"}
+    v = tuning_rule.judge(normals, agree=2)
+    assert v["geometry_rule"] and v["improving"] == ["normal_mae"] and not v["psnr_rule"]
+    assert not tuning_rule.judge(normals, agree=3)["geometry_rule"]
+    out = tmp_path / "rule.md"
+    assert tuning_rule.main(["--rooms", "1,2,3,4", "--base", str(tmp_path / "base"), "--switch",
+                             f"gain={tmp_path / 'gain'}", "--out", str(out)]) == 0
+    text = out.read_text()
+    assert "**Adopted.**" in text and "Left out (no seed finished in both folders): 4." in text

@@ -1,0 +1,139 @@
+"""Apply the tuning rule of ``docs/results/tuning_73xx`` to a switch: does it become a default?
+
+Each configuration is a benchmark output folder per room (``--base`` and each ``--switch`` take a pattern with
+``{room}``). A room's figure is the mean over the seeds that both the base and the switch have for it (seed 0 is the
+run folder ``METHOD``, seed k ``METHOD@seedk``); rooms missing either side are left out and named. The rule, written
+before the runs it judges (sections 1 and 5 of that README), on the mean of the rooms:
+
+- geometry rule: an improvement of at least 0.5 deg of normal MAE, or 5 % of AbsRel, or 2 deg of glass normal MAE,
+  or 10 % of glass AbsRel; at most 0.3 dB of PSNR lost and none of the four worse by more than those amounts; the
+  improving column better in at least ``--agree`` rooms;
+- PSNR rule: at least +0.3 dB of PSNR, higher in at least ``--agree`` rooms, none of the four geometry columns worse
+  by more than those amounts.
+
+``--agree`` defaults to all rooms but one (two of three, three of four, four of five).
+
+    .venv/bin/python benchmarks/tuning_rule.py --rooms 7301,7302,7303,7310,7340 --base 'runs/q{room}/base' \\
+        --switch near='runs/q{room}/near' --switch cfrom='runs/q{room}/cfrom' [--method glint] [--out rule.md]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+COLUMNS = ("psnr", "normal_mae", "absrel", "normal_mae_glass", "absrel_glass", "t_iou")
+# (column, threshold, relative?): an improvement lowers the column
+GEOMETRY = (("normal_mae", 0.5, False), ("absrel", 0.05, True), ("normal_mae_glass", 2.0, False),
+            ("absrel_glass", 0.10, True))
+PSNR_COST, PSNR_GAIN = 0.3, 0.3
+
+
+def seed_runs(folder: Path, room: str, method: str) -> dict[int, dict]:
+    """{seed: metrics} of one method's finished runs in a benchmark output folder."""
+    runs = {}
+    scene = folder / "runs" / f"scene_{room}"
+    if not scene.is_dir():
+        return runs
+    for d in sorted(scene.iterdir()):
+        name, _, tail = d.name.partition("@seed")
+        if name != method or not (d / "metrics.json").exists() or (tail and not tail.isdigit()):
+            continue
+        m = json.loads((d / "metrics.json").read_text())
+        runs[int(tail or 0)] = m.get("metrics", m)
+    return runs
+
+
+def room_pair(base: Path, switch: Path, room: str, method: str):
+    """Per-room means over the seeds both folders have: (base, switch, seeds), or None."""
+    b, s = seed_runs(base, room, method), seed_runs(switch, room, method)
+    seeds = sorted(set(b) & set(s))
+    if not seeds:
+        return None
+    mean = lambda runs: {c: float(np.mean([runs[k][c] for k in seeds])) for c in COLUMNS}
+    return mean(b), mean(s), seeds
+
+
+def change(col: str, base: float, new: float, relative: bool) -> float:
+    """Improvement (positive = better) in the column's unit: deg, or a fraction of the base for AbsRel."""
+    d = base - new
+    return d / base if relative else d
+
+
+def judge(pairs: dict[str, tuple], agree: int) -> dict:
+    """The rule on the rooms' pairs {room: (base, switch, seeds)}."""
+    rooms = sorted(pairs)
+    mb = {c: float(np.mean([pairs[r][0][c] for r in rooms])) for c in COLUMNS}
+    ms = {c: float(np.mean([pairs[r][1][c] for r in rooms])) for c in COLUMNS}
+    gain = {c: change(c, mb[c], ms[c], rel) for c, _, rel in GEOMETRY}
+    within = all(gain[c] >= -thr for c, thr, _ in GEOMETRY)
+    dpsnr = ms["psnr"] - mb["psnr"]
+    per_room = {c: sum(change(c, pairs[r][0][c], pairs[r][1][c], rel) > 0 for r in rooms) for c, _, rel in GEOMETRY}
+    psnr_rooms = sum(pairs[r][1]["psnr"] > pairs[r][0]["psnr"] for r in rooms)
+    improving = [c for c, thr, _ in GEOMETRY if gain[c] >= thr and per_room[c] >= agree]
+    geometry_rule = bool(improving) and within and dpsnr >= -PSNR_COST
+    psnr_rule = dpsnr >= PSNR_GAIN and psnr_rooms >= agree and within
+    return dict(base=mb, switch=ms, gain=gain, dpsnr=dpsnr, within=within, per_room=per_room,
+                psnr_rooms=psnr_rooms, improving=improving, geometry_rule=geometry_rule, psnr_rule=psnr_rule,
+                adopted=geometry_rule or psnr_rule)
+
+
+def report(name: str, pairs: dict, verdict: dict, agree: int) -> str:
+    rooms = sorted(pairs)
+    lines = [f"### {name}", "", "| room | seeds | " + " | ".join(f"{c} (base -> switch)" for c in COLUMNS) + " |",
+             "|---|---|" + "---|" * len(COLUMNS)]
+    for r in rooms:
+        b, s, seeds = pairs[r]
+        lines.append(f"| {r} | {','.join(map(str, seeds))} | "
+                     + " | ".join(f"{b[c]:.4g} -> {s[c]:.4g}" for c in COLUMNS) + " |")
+    v = verdict
+    lines.append("| mean | | " + " | ".join(f"{v['base'][c]:.4g} -> {v['switch'][c]:.4g}" for c in COLUMNS) + " |")
+    geo = ", ".join(f"{c} {v['gain'][c] * (100 if rel else 1):+.2f}{' %' if rel else ''} (better in {v['per_room'][c]})"
+                    for c, _, rel in GEOMETRY)
+    lines += ["", f"PSNR {v['dpsnr']:+.2f} dB (higher in {v['psnr_rooms']} of {len(rooms)} rooms); improvements "
+              f"(positive = better): {geo}; geometry within bounds: {'yes' if v['within'] else 'no'}.",
+              f"Geometry rule: {'passes' if v['geometry_rule'] else 'fails'}; PSNR rule (+{PSNR_GAIN} dB, "
+              f"{agree} of {len(rooms)} rooms): {'passes' if v['psnr_rule'] else 'fails'}. "
+              f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**", ""]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rooms", required=True, help="comma-separated room ids, the {room} in the patterns")
+    ap.add_argument("--base", required=True, help="benchmark output folder of the defaults, with {room}")
+    ap.add_argument("--switch", action="append", required=True, metavar="NAME=PATTERN")
+    ap.add_argument("--method", default="glint")
+    ap.add_argument("--agree", type=int, default=None, help="rooms that must agree (default: all but one)")
+    ap.add_argument("--out", type=Path, default=None, help="also write the report here (markdown)")
+    a = ap.parse_args(argv)
+    rooms = [r.strip() for r in a.rooms.split(",") if r.strip()]
+    args = list(argv if argv is not None else sys.argv[1:])
+    out = [f"Tuning rule: `{' '.join(['python benchmarks/tuning_rule.py'] + args)}`", ""]
+    for spec in a.switch:
+        if "=" not in spec:
+            ap.error(f"--switch {spec!r}: expected NAME=PATTERN, e.g. near='runs/q{{room}}/near'")
+        name, pattern = spec.split("=", 1)
+        pairs, missing = {}, []
+        for r in rooms:
+            p = room_pair(Path(a.base.format(room=r)), Path(pattern.format(room=r)), r, a.method)
+            (missing.append(r) if p is None else pairs.__setitem__(r, p))
+        if not pairs:
+            out.append(f"### {name}\n\nno room has a finished run in both folders\n")
+            continue
+        agree = a.agree if a.agree is not None else max(len(pairs) - 1, 1)
+        out.append(report(name, pairs, judge(pairs, agree), agree))
+        if missing:
+            out.append(f"Left out (no seed finished in both folders): {', '.join(missing)}.\n")
+    text = "\n".join(out)
+    print(text)
+    if a.out:
+        a.out.write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
