@@ -11,7 +11,8 @@ before the runs it judges (sections 1 and 5 of that README), on the mean of the 
 - PSNR rule: at least +0.3 dB of PSNR, higher in at least ``--agree`` rooms, none of the four geometry columns worse
   by more than those amounts.
 
-``--agree`` defaults to all rooms but one (two of three, three of four, four of five).
+``--agree`` defaults to all rooms but one (two of three, three of four, four of five); fewer than ``--min-rooms``
+(3) rooms decide nothing.
 
     .venv/bin/python benchmarks/tuning_rule.py --rooms 7301,7302,7303,7310,7340 --base 'runs/q{room}/base' \\
         --switch near='runs/q{room}/near' --switch cfrom='runs/q{room}/cfrom' [--method glint] [--out rule.md]
@@ -63,8 +64,8 @@ def change(col: str, base: float, new: float, relative: bool) -> float:
     return d / base if relative else d
 
 
-def judge(pairs: dict[str, tuple], agree: int) -> dict:
-    """The rule on the rooms' pairs {room: (base, switch, seeds)}."""
+def judge(pairs: dict[str, tuple], agree: int, min_rooms: int = 3) -> dict:
+    """The rule on the rooms' pairs {room: (base, switch, seeds)}; fewer than ``min_rooms`` rooms decide nothing."""
     rooms = sorted(pairs)
     mb = {c: float(np.mean([pairs[r][0][c] for r in rooms])) for c in COLUMNS}
     ms = {c: float(np.mean([pairs[r][1][c] for r in rooms])) for c in COLUMNS}
@@ -78,7 +79,7 @@ def judge(pairs: dict[str, tuple], agree: int) -> dict:
     psnr_rule = dpsnr >= PSNR_GAIN and psnr_rooms >= agree and within
     return dict(base=mb, switch=ms, gain=gain, dpsnr=dpsnr, within=within, per_room=per_room,
                 psnr_rooms=psnr_rooms, improving=improving, geometry_rule=geometry_rule, psnr_rule=psnr_rule,
-                adopted=geometry_rule or psnr_rule)
+                enough=len(rooms) >= min_rooms, adopted=(geometry_rule or psnr_rule) and len(rooms) >= min_rooms)
 
 
 def report(name: str, pairs: dict, verdict: dict, agree: int) -> str:
@@ -97,7 +98,8 @@ def report(name: str, pairs: dict, verdict: dict, agree: int) -> str:
               f"(positive = better): {geo}; geometry within bounds: {'yes' if v['within'] else 'no'}.",
               f"Geometry rule: {'passes' if v['geometry_rule'] else 'fails'}; PSNR rule (+{PSNR_GAIN} dB, "
               f"{agree} of {len(rooms)} rooms): {'passes' if v['psnr_rule'] else 'fails'}. "
-              f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**", ""]
+              + (f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**" if v["enough"]
+                 else f"**Too few rooms to decide** ({len(rooms)})."), ""]
     return "\n".join(lines)
 
 
@@ -108,6 +110,7 @@ def main(argv=None) -> int:
     ap.add_argument("--switch", action="append", required=True, metavar="NAME=PATTERN")
     ap.add_argument("--method", default="glint")
     ap.add_argument("--agree", type=int, default=None, help="rooms that must agree (default: all but one)")
+    ap.add_argument("--min-rooms", type=int, default=3, help="fewer rooms than this decide nothing (default 3)")
     ap.add_argument("--out", type=Path, default=None, help="also write the report here (markdown)")
     a = ap.parse_args(argv)
     rooms = [r.strip() for r in a.rooms.split(",") if r.strip()]
@@ -125,7 +128,7 @@ def main(argv=None) -> int:
             out.append(f"### {name}\n\nno room has a finished run in both folders\n")
             continue
         agree = a.agree if a.agree is not None else max(len(pairs) - 1, 1)
-        out.append(report(name, pairs, judge(pairs, agree), agree))
+        out.append(report(name, pairs, judge(pairs, agree, a.min_rooms), agree))
         if missing:
             out.append(f"Left out (no seed finished in both folders): {', '.join(missing)}.\n")
     text = "\n".join(out)

@@ -483,7 +483,8 @@ def test_case_coverage_from_the_layout():
 def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
     """benchmarks/tuning_rule.py: a room's figure is the mean over the seeds both folders finished; a PSNR gain of
     0.3 dB in all but one room passes only while the geometry stays within the bounds; a 0.6 deg normal gain in two
-    of three rooms passes the geometry rule; a room missing on one side is left out and named."""
+    of three rooms passes the geometry rule; one room decides nothing; a room missing on one side is left out and
+    named."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import tuning_rule
 
@@ -513,6 +514,8 @@ def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
     v = tuning_rule.judge(normals, agree=2)
     assert v["geometry_rule"] and v["improving"] == ["normal_mae"] and not v["psnr_rule"]
     assert not tuning_rule.judge(normals, agree=3)["geometry_rule"]
+    one = tuning_rule.judge({"1": pairs["1"]}, agree=1)          # one room passes the PSNR rule but decides nothing
+    assert one["psnr_rule"] and not one["enough"] and not one["adopted"]
     out = tmp_path / "rule.md"
     assert tuning_rule.main(["--rooms", "1,2,3,4", "--base", str(tmp_path / "base"), "--switch",
                              f"gain={tmp_path / 'gain'}", "--out", str(out)]) == 0
