@@ -20,11 +20,13 @@ before the runs it judges (sections 1 and 5 of that README), on the mean of the 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
 
 COLUMNS = ("psnr", "normal_mae", "absrel", "normal_mae_glass", "absrel_glass", "t_iou")
 # (column, threshold, relative?): an improvement lowers the column
@@ -33,19 +35,15 @@ GEOMETRY = (("normal_mae", 0.5, False), ("absrel", 0.05, True), ("normal_mae_gla
 PSNR_COST, PSNR_GAIN = 0.3, 0.3
 
 
-def seed_runs(folder: Path, room: str, method: str) -> dict[int, dict]:
-    """{seed: metrics} of one method's finished runs in a benchmark output folder."""
-    runs = {}
-    scene = folder / "runs" / f"scene_{room}"
-    if not scene.is_dir():
-        return runs
-    for d in sorted(scene.iterdir()):
-        name, _, tail = d.name.partition("@seed")
-        if name != method or not (d / "metrics.json").exists() or (tail and not tail.isdigit()):
-            continue
-        m = json.loads((d / "metrics.json").read_text())
-        runs[int(tail or 0)] = m.get("metrics", m)
-    return runs
+def seed_runs(folder: Path, room: str, method: str, max_seed: int = 64) -> dict[int, dict]:
+    """{seed: metrics} of one method's finished runs in a benchmark output folder: the benchmark's own run folders
+    (``job_list``) and its test of a finished evaluation (``finished_metrics``: an interrupted one is not read)."""
+    from glint_mi.benchmark import job_list
+    from glint_mi.runs import finished_metrics
+
+    jobs = job_list([method], [Path(f"scene_{room}")], list(range(max_seed)), Path(folder))
+    done = {seed: finished_metrics(run) for _, _, run, seed in jobs}
+    return {seed: res["metrics"] for seed, res in done.items() if res is not None}
 
 
 def room_pair(base: Path, switch: Path, room: str, method: str):

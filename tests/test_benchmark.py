@@ -483,8 +483,8 @@ def test_case_coverage_from_the_layout():
 def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
     """benchmarks/tuning_rule.py: a room's figure is the mean over the seeds both folders finished; a PSNR gain of
     0.3 dB in all but one room passes only while the geometry stays within the bounds; a 0.6 deg normal gain in two
-    of three rooms passes the geometry rule; one room decides nothing; a room missing on one side is left out and
-    named."""
+    of three rooms passes the geometry rule; one room decides nothing; an interrupted evaluation is not read; a room
+    missing on one side is left out and named."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import tuning_rule
 
@@ -503,6 +503,8 @@ def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
         write("costly", room, 0, psnr=0.5, normal_mae=0.6)          # PSNR bought with 0.6 deg of normals
         write("normals", room, 0, normal_mae=-0.9 if room != "3" else 0.1)
     write("base", "4", 0)                                           # no switch run in room 4
+    write("gain", "1", 1, psnr=5.0)                                 # an interrupted evaluation: must not count
+    (tmp_path / "gain" / "runs" / "scene_1" / "glint@seed1" / "evaluation_partial").mkdir()
     pairs = {r: tuning_rule.room_pair(tmp_path / "base", tmp_path / "gain", r, "glint") for r in "123"}
     assert all(p[2] == [0] for p in pairs.values()) and tuning_rule.room_pair(
         tmp_path / "base", tmp_path / "gain", "4", "glint") is None
