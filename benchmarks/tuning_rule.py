@@ -123,7 +123,9 @@ def main(argv=None) -> int:
             p = room_pair(Path(a.base.format(room=r)), Path(pattern.format(room=r)), r, a.method)
             (missing.append(r) if p is None else pairs.__setitem__(r, p))
         if not pairs:
-            out.append(f"### {name}\n\nno room has a finished run in both folders\n")
+            absent = [f for r in rooms for f in (a.base.format(room=r), pattern.format(room=r)) if not Path(f).is_dir()]
+            out.append(f"### {name}\n\nno room has a finished run in both folders"
+                       + (f" (no such folder: {', '.join(sorted(set(absent)))})" if absent else "") + "\n")
             continue
         agree = a.agree if a.agree is not None else max(len(pairs) - 1, 1)
         out.append(report(name, pairs, judge(pairs, agree, a.min_rooms), agree))
