@@ -154,7 +154,9 @@ class LossConfig:
     #                                      use_dpt_scale_(gs_)norm_loss: 1 - (D - near) / (far - near) clipped to
     #                                      [0, 1], near / far the 1 % / 99 % quantiles of the rendered depth (the
     #                                      release: of the image; here: of the batch, whose patches span views), so
-    #                                      the far end of a view (a window, the far wall) is barely constrained
+    #                                      the far end of a view (a window, the far wall) is barely constrained;
+    #                                      near_consistency: that weight on the consistency term only, the normal
+    #                                      prior keeping every pixel (the far walls' normals stay the prior's)
     w_dist: float = 0.0                  # 2DGS's depth distortion, mean over rays of sum_{i<j} w_i w_j (m_i - m_j)^2
     #                                      on NDC-mapped distances (near 0.2, far 100); GLINT has none
     w_trans: float = 0.01
@@ -368,8 +370,9 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
              "use expected, median (2DGS) or first_surface (TSGS; needs priors/glass masks)")
         need(self.consistency_depth in ("expected", "median"), "consistency_depth",
              "use expected (GLINT) or median (2DGS)")
-        need(self.normal_weight in ("uniform", "near"), "normal_weight",
-             "use uniform (glint_mi) or near (the release: nearer pixels weigh more)")
+        need(self.normal_weight in ("uniform", "near", "near_consistency"), "normal_weight",
+             "use uniform (glint_mi), near (the release: nearer pixels weigh more) or near_consistency (near on "
+             "the depth-normal consistency only)")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
         need(self.cue_votes in ("view", "point"), "cue_votes", "use view or point")

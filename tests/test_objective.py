@@ -452,6 +452,9 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
     far = (A > 0.5) & (w == 0)
     gu, gn = (np.abs(_rows(a["normal"])).sum(-1) for a in (au, an))
     assert far.sum() >= int(0.01 * (A > 0.5).sum()) >= 1 and gu[far].max() > 0 and gn[far].max() == 0
+    # near_consistency: the weight on the consistency only, the normal prior as under the default
+    tc, ac, _ = run(dataclasses.replace(c, normal_weight="near_consistency"))
+    assert tc["normal"] == tu["normal"] and tc["consistency"] == pytest.approx(tn["consistency"], rel=1e-6)
     from glint_mi.config import ConfigError
     from glint_mi.methods import config_for
     assert config_for("glint-paper", "tiny").normal_weight == "near"  # the release's; glint_mi's default is uniform

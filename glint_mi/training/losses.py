@@ -274,8 +274,10 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         A = dr.detach(out["alpha"])
         parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
         # the release's depth scale of the normal terms (normal_weight: near), from the interface's depth
-        w_near = near_weight(out["depth"], A > 0.5) if c.normal_weight == "near" and (
-            st["consistency"] or st["normal"]) else None
+        # (near_consistency: the consistency only; the normal prior keeps every pixel)
+        near_c = c.normal_weight in ("near", "near_consistency")
+        w_near = near_weight(out["depth"], A > 0.5) if near_c and (
+            st["consistency"] or (st["normal"] and c.normal_weight == "near")) else None
         if st["consistency"]:
             if c.consistency_depth == "median":  # 2DGS: normals of the median depth (where T falls to 0.5)
                 dist = leaves["median"] = _leaf(out["median"])
@@ -329,13 +331,14 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             behind = None
             if behind_ok is not None:
                 behind = (mi.Vector3f(dr.dot(axes[0], Dn), dr.dot(axes[1], Dn), dr.dot(axes[2], Dn)), behind_ok)
+            w_prior = w_near if c.normal_weight == "near" else None
             parts["normal"] = c.w_normal * prior_w * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
-                                                                 st["normal_masked"], behind, w_near)[0]
+                                                                 st["normal_masked"], behind, w_prior)[0]
         if "transmission" in st["traced"]:
             if st["direct"]:
                 parts["direct"] = c.w_direct * (c.w_l1 * l1(Dc, gt) + c.w_dssim * dssim(Dc, gt, p))
                 if st["consistency"]:  # (normal_weight near: the release scales it by G_trans's own depth)
-                    w_t_near = near_weight(Dd, dr.detach(DA) > 0.5) if c.normal_weight == "near" else None
+                    w_t_near = near_weight(Dd, dr.detach(DA) > 0.5) if near_c else None
                     parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
                         depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
                                                  dr.detach(DA) > 0.5, nb, w_t_near)
