@@ -12,7 +12,8 @@ NO_PRIORS = dict(priors="none", w_depth=0.0, w_normal=0.0)
 NO_GLASS = dict(w_trans=0.0, w_treg=0.0, w_plausibility=0.0, w_direct=0.0)
 PLAIN_PHOTO = dict(w_l1=0.8, w_dssim=0.2)  # 3DGS / 2DGS weights
 ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no specular, no transparency attribute
-NOT_OURS = dict(w_sfm_depth=0.0)  # glint_mi's SfM depth term is no baseline's
+# glint_mi's SfM depth term and its near-to-far weight of the consistency are no baseline's
+NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform")
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
 GLINT_PHOTO = dict(w_l1=1.2, w_dssim=0.4)  # GLINT's photometric weights (TrainConfig's defaults; tested equal)
 # prior parity: GLINT's depth and normal terms with GLINT's photometric weights, so the priors weigh as much against

@@ -439,7 +439,7 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
         assert g[i, 0] == pytest.approx(fd, rel=2e-2, abs=1e-5)
 
     # in the objective, one traced batch of the bundled room past the normal prior's start
-    c = TrainConfig.for_preset("tiny", iterations=200, components="interface")
+    c = TrainConfig.for_preset("tiny", iterations=200, components="interface", normal_weight="uniform")
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["normal"] and st["consistency"]
     run = lambda cfg: L.batch_objective(cfg, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)
@@ -457,7 +457,11 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
     assert tc["normal"] == tu["normal"] and tc["consistency"] == pytest.approx(tn["consistency"], rel=1e-6)
     from glint_mi.config import ConfigError
     from glint_mi.methods import config_for
-    assert config_for("glint-paper", "tiny").normal_weight == "near"  # the release's; glint_mi's default is uniform
-    assert config_for("glint", "tiny").normal_weight == config_for("3dgs-priors", "tiny").normal_weight == "uniform"
+    assert config_for("glint-paper", "tiny").normal_weight == "near"  # the release's
+    assert config_for("glint", "tiny").normal_weight == TrainConfig().normal_weight == "near_consistency"
+    from glint_mi.methods import METHODS  # every baseline weighs its normal terms uniformly, as its paper does
+    for name in METHODS:  # GLINT's ablations keep its weight; the baselines weigh uniformly
+        want = "near" if name == "glint-paper" else "near_consistency" if name.startswith("glint") else "uniform"
+        assert config_for(name, "tiny").normal_weight == want, name
     with pytest.raises(ConfigError, match="'normal_weight' = 'far'"):
         TrainConfig.for_preset("tiny", normal_weight="far")
