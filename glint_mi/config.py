@@ -150,8 +150,8 @@ class LossConfig:
     consistency_depth: str = "expected"  # the depth whose normals the consistency term compares: expected (GLINT) or
     #                                      median (2DGS's depth_ratio 1: the distance where T falls to 0.5)
     normal_weight: str = "near_consistency"  # per-pixel weight of the normal prior and depth-normal consistency
-    #                                      terms: uniform (the supplement's formulas; every baseline's) or near = the release's
-    #                                      use_dpt_scale_(gs_)norm_loss: 1 - (D - near) / (far - near) clipped to
+    #                                      terms: uniform (the supplement's formulas; every baseline's) or near =
+    #                                      the release's use_dpt_scale_(gs_)norm_loss: 1 - (D - near) / (far - near) clipped to
     #                                      [0, 1], near / far the 1 % / 99 % quantiles of the rendered depth (the
     #                                      release: of the image; here: of the batch, whose patches span views), so
     #                                      the far end of a view (a window, the far wall) is barely constrained;
@@ -372,8 +372,8 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
         need(self.consistency_depth in ("expected", "median"), "consistency_depth",
              "use expected (GLINT) or median (2DGS)")
         need(self.normal_weight in ("uniform", "near", "near_consistency"), "normal_weight",
-             "use uniform (glint_mi), near (the release: nearer pixels weigh more) or near_consistency (near on "
-             "the depth-normal consistency only)")
+             "use near_consistency (glint_mi: the release's depth scale on the depth-normal consistency only), "
+             "near (the release: on the normal prior too) or uniform (the baselines)")
         need(self.plausibility_mask in ("interface", "opaque"), "plausibility_mask", "use interface or opaque")
         need(self.trans_cue in ("auto", "none"), "trans_cue", "use auto or none (the paper's masks)")
         need(self.cue_votes in ("view", "point"), "cue_votes", "use view or point")

@@ -459,8 +459,8 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
     from glint_mi.methods import config_for
     assert config_for("glint-paper", "tiny").normal_weight == "near"  # the release's
     assert config_for("glint", "tiny").normal_weight == TrainConfig().normal_weight == "near_consistency"
-    from glint_mi.methods import METHODS  # every baseline weighs its normal terms uniformly, as its paper does
-    for name in METHODS:  # GLINT's ablations keep its weight; the baselines weigh uniformly
+    from glint_mi.methods import METHODS
+    for name in METHODS:  # GLINT's ablations keep its weight; every baseline weighs uniformly, as its paper does
         want = "near" if name == "glint-paper" else "near_consistency" if name.startswith("glint") else "uniform"
         assert config_for(name, "tiny").normal_weight == want, name
     with pytest.raises(ConfigError, match="'normal_weight' = 'far'"):

@@ -273,18 +273,18 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
         A = dr.detach(out["alpha"])
         parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
-        # the release's depth scale of the normal terms (normal_weight: near), from the interface's depth
-        # (near_consistency: the consistency only; the normal prior keeps every pixel)
-        near_c = c.normal_weight in ("near", "near_consistency")
-        w_near = near_weight(out["depth"], A > 0.5) if near_c and (
-            st["consistency"] or (st["normal"] and c.normal_weight == "near")) else None
+        # the release's depth scale, from the interface's depth: on the consistency (near, near_consistency) and on
+        # the normal prior (near only; under near_consistency the prior keeps every pixel)
+        near_c, near_p = c.normal_weight in ("near", "near_consistency"), c.normal_weight == "near"
+        w_near = near_weight(out["depth"], A > 0.5) if (near_c and st["consistency"]) or (
+            near_p and st["normal"]) else None
         if st["consistency"]:
             if c.consistency_depth == "median":  # 2DGS: normals of the median depth (where T falls to 0.5)
                 dist = leaves["median"] = _leaf(out["median"])
             else:
                 dist = depth / dr.dot(ray.d, fwd)
             parts["consistency"] = c.w_consistency * depth_normal_consistency(
-                ray.o, ray.d, dist, normal, A > 0.5, nb, w_near)
+                ray.o, ray.d, dist, normal, A > 0.5, nb, w_near if near_c else None)
         if st.get("distortion"):  # 2DGS's depth distortion of the interface's hits, mean over the rays
             leaves["distortion"] = _leaf(out["distortion"])
             parts["distortion"] = c.w_dist * dr.mean(leaves["distortion"])
@@ -331,13 +331,13 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             behind = None
             if behind_ok is not None:
                 behind = (mi.Vector3f(dr.dot(axes[0], Dn), dr.dot(axes[1], Dn), dr.dot(axes[2], Dn)), behind_ok)
-            w_prior = w_near if c.normal_weight == "near" else None
             parts["normal"] = c.w_normal * prior_w * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
-                                                                 st["normal_masked"], behind, w_prior)[0]
+                                                                 st["normal_masked"], behind,
+                                                                 w_near if near_p else None)[0]
         if "transmission" in st["traced"]:
             if st["direct"]:
                 parts["direct"] = c.w_direct * (c.w_l1 * l1(Dc, gt) + c.w_dssim * dssim(Dc, gt, p))
-                if st["consistency"]:  # (normal_weight near: the release scales it by G_trans's own depth)
+                if st["consistency"]:  # (near, near_consistency: the release scales it by G_trans's own depth)
                     w_t_near = near_weight(Dd, dr.detach(DA) > 0.5) if near_c else None
                     parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
                         depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
