@@ -14,8 +14,14 @@ before the runs it judges (sections 1 and 5 of that README), on the mean of the 
 ``--agree`` defaults to all rooms but one (two of three, three of four, four of five); fewer than ``--min-rooms``
 (3) rooms decide nothing.
 
+``--confirm`` judges a switch already adopted on rooms it was not tuned on (the check rooms of that README): the
+base is the default it replaced, and it stays if, on the rooms' mean, it is worse than the base by no more than
+those amounts (0.3 dB of PSNR, and each geometry column's bound); otherwise it reverts.
+
     .venv/bin/python benchmarks/tuning_rule.py --rooms 7301,7302,7303,7310,7340 --base 'runs/q{room}/base' \\
         --switch near='runs/q{room}/near' --switch cfrom='runs/q{room}/cfrom' [--method glint] [--out rule.md]
+    .venv/bin/python benchmarks/tuning_rule.py --confirm --rooms 9601,9602,9603,9604 --base 'former' \
+        --switch near_consistency='new'
 """
 from __future__ import annotations
 
@@ -77,10 +83,11 @@ def judge(pairs: dict[str, tuple], agree: int, min_rooms: int = 3) -> dict:
     psnr_rule = dpsnr >= PSNR_GAIN and psnr_rooms >= agree and within
     return dict(base=mb, switch=ms, gain=gain, dpsnr=dpsnr, within=within, per_room=per_room,
                 psnr_rooms=psnr_rooms, improving=improving, geometry_rule=geometry_rule, psnr_rule=psnr_rule,
-                enough=len(rooms) >= min_rooms, adopted=(geometry_rule or psnr_rule) and len(rooms) >= min_rooms)
+                enough=len(rooms) >= min_rooms, adopted=(geometry_rule or psnr_rule) and len(rooms) >= min_rooms,
+                stays=within and dpsnr >= -PSNR_COST)
 
 
-def report(name: str, pairs: dict, verdict: dict, agree: int) -> str:
+def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = False) -> str:
     rooms = sorted(pairs)
     lines = [f"### {name}", "", "| room | seeds | " + " | ".join(f"{c} (base -> switch)" for c in COLUMNS) + " |",
              "|---|---|" + "---|" * len(COLUMNS)]
@@ -94,6 +101,9 @@ def report(name: str, pairs: dict, verdict: dict, agree: int) -> str:
                     for c, _, rel in GEOMETRY)
     lines += ["", f"PSNR {v['dpsnr']:+.2f} dB (higher in {v['psnr_rooms']} of {len(rooms)} rooms); improvements "
               f"(positive = better): {geo}; geometry within bounds: {'yes' if v['within'] else 'no'}.",
+              (f"Check rule (the adopted switch worse than the default it replaced by at most {PSNR_COST} dB and the "
+               f"geometry bounds): " + (f"**{'Stays' if v['stays'] else 'Reverts'}.**" if v["enough"]
+                                        else f"**Too few rooms to decide** ({len(rooms)}).")) if confirm else
               f"Geometry rule: {'passes' if v['geometry_rule'] else 'fails'}; PSNR rule (+{PSNR_GAIN} dB, "
               f"{agree} of {len(rooms)} rooms): {'passes' if v['psnr_rule'] else 'fails'}. "
               + (f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**" if v["enough"]
@@ -110,6 +120,8 @@ def main(argv=None) -> int:
     ap.add_argument("--agree", type=int, default=None, help="rooms that must agree (default: all but one)")
     ap.add_argument("--min-rooms", type=int, default=3, help="fewer rooms than this decide nothing (default 3)")
     ap.add_argument("--out", type=Path, default=None, help="also write the report here (markdown)")
+    ap.add_argument("--confirm", action="store_true",
+                    help="the check rule: the switch is an adopted default, the base the one it replaced")
     a = ap.parse_args(argv)
     rooms = [r.strip() for r in a.rooms.split(",") if r.strip()]
     args = list(argv if argv is not None else sys.argv[1:])
@@ -128,7 +140,7 @@ def main(argv=None) -> int:
                        + (f" (no such folder: {', '.join(sorted(set(absent)))})" if absent else "") + "\n")
             continue
         agree = a.agree if a.agree is not None else max(len(pairs) - 1, 1)
-        out.append(report(name, pairs, judge(pairs, agree, a.min_rooms), agree))
+        out.append(report(name, pairs, judge(pairs, agree, a.min_rooms), agree, a.confirm))
         if missing:
             out.append(f"Left out (no seed finished in both folders): {', '.join(missing)}.\n")
     text = "\n".join(out)

@@ -523,3 +523,14 @@ def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
                              f"gain={tmp_path / 'gain'}", "--out", str(out)]) == 0
     text = out.read_text()
     assert "**Adopted.**" in text and "Left out (no seed finished in both folders): 4." in text
+    # the check rule (--confirm): an adopted switch stays unless worse than the default it replaced by more than the
+    # bounds; 0.6 deg of normals is over them, whatever the PSNR, and 0.1 dB lower with the geometry equal is not
+    assert not tuning_rule.judge(costly, agree=2)["stays"] and tuning_rule.judge(normals, agree=2)["stays"]
+    for r in "123":
+        write("level", r, 0, psnr=-0.1)
+        write("lower", r, 0, psnr=-0.35)
+    assert tuning_rule.main(["--confirm", "--rooms", "1,2,3", "--base", str(tmp_path / "base"),
+                             "--switch", f"level={tmp_path / 'level'}", "--switch", f"lower={tmp_path / 'lower'}",
+                             "--out", str(out)]) == 0
+    level, lower = out.read_text().split("### lower")
+    assert "**Stays.**" in level and "**Reverts.**" in lower and "Adopted" not in level + lower
