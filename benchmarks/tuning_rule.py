@@ -20,7 +20,7 @@ those amounts (0.3 dB of PSNR, and each geometry column's bound); otherwise it r
 
     .venv/bin/python benchmarks/tuning_rule.py --rooms 7301,7302,7303,7310,7340 --base 'runs/q{room}/base' \\
         --switch near='runs/q{room}/near' --switch cfrom='runs/q{room}/cfrom' [--method glint] [--out rule.md]
-    .venv/bin/python benchmarks/tuning_rule.py --confirm --rooms 9601,9602,9603,9604 --base 'former' \
+    .venv/bin/python benchmarks/tuning_rule.py --confirm --rooms 9601,9602,9603,9604 --base 'former' \\
         --switch near_consistency='new'
 """
 from __future__ import annotations

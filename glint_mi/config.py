@@ -151,10 +151,11 @@ class LossConfig:
     #                                      median (2DGS's depth_ratio 1: the distance where T falls to 0.5)
     normal_weight: str = "near_consistency"  # per-pixel weight of the normal prior and depth-normal consistency
     #                                      terms: uniform (the supplement's formulas; every baseline's) or near =
-    #                                      the release's use_dpt_scale_(gs_)norm_loss: 1 - (D - near) / (far - near) clipped to
-    #                                      [0, 1], near / far the 1 % / 99 % quantiles of the rendered depth (the
-    #                                      release: of the image; here: of the batch, whose patches span views), so
-    #                                      the far end of a view (a window, the far wall) is barely constrained;
+    #                                      the release's use_dpt_scale_(gs_)norm_loss: 1 - (D - near) / (far - near)
+    #                                      clipped to [0, 1], near / far the 1 % / 99 % quantiles of the rendered
+    #                                      depth (the release: of the image; here: of the batch, whose patches span
+    #                                      views), so the far end of a view (a window, the far wall) is barely
+    #                                      constrained;
     #                                      near_consistency (glint_mi's since 2026-11-27, tuning_73xx section 6):
     #                                      that weight on the consistency term only, the normal prior keeping every
     #                                      pixel (the far walls' normals stay the prior's)

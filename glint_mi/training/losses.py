@@ -284,7 +284,7 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
             else:
                 dist = depth / dr.dot(ray.d, fwd)
             parts["consistency"] = c.w_consistency * depth_normal_consistency(
-                ray.o, ray.d, dist, normal, A > 0.5, nb, w_near if near_c else None)
+                ray.o, ray.d, dist, normal, A > 0.5, nb, w_near)
         if st.get("distortion"):  # 2DGS's depth distortion of the interface's hits, mean over the rays
             leaves["distortion"] = _leaf(out["distortion"])
             parts["distortion"] = c.w_dist * dr.mean(leaves["distortion"])
