@@ -6,11 +6,83 @@ Mitsuba variant (default ``llvm_ad_rgb``, or ``$GLINT_VARIANT``), checks LLVM an
 """
 from __future__ import annotations
 
+import contextlib
+import importlib.abc
 import os
+import sys
 
 from glint_mi._llvm import LLVMError, check_llvm, configure_environment
 
 configure_environment()
+
+
+def _quiet_interrupt(kind, value, tb, _previous=sys.excepthook):
+    """A Ctrl-C that reaches the top of a glint_mi command (in its first second, while modules still load, or in
+    a library call made from a script) ends it with one line, not a traceback; the commands catch it themselves
+    wherever they have something to say (what was kept, how to continue). The exit status stays that of SIGINT."""
+    chain, e = [], value
+    while e is not None and len(chain) < 8:  # an import in C (Dr.Jit, Mitsuba) wraps it in a SystemError
+        chain.append(e)
+        e = e.__cause__ or e.__context__
+    if any(isinstance(e, KeyboardInterrupt) for e in chain):
+        print("\ninterrupted (Ctrl-C)", file=sys.stderr)
+        sys.stdout.flush(), sys.stderr.flush()
+        os._exit(130)  # the shell's status for Ctrl-C; nothing is left to clean up at the top of a command
+    _previous(kind, value, tb)
+
+
+if sys.excepthook is sys.__excepthook__:  # leave IPython's and other hosts' hooks alone
+    sys.excepthook = _quiet_interrupt
+
+
+@contextlib.contextmanager
+def deferred_interrupt():
+    """Hold a Ctrl-C back until the block ends: a KeyboardInterrupt raised inside a C++ extension's module
+    initialisation (Dr.Jit's, Mitsuba's: Python code they run while loading) aborts the process (SIGABRT, measured at
+    0.15-0.2 s into a command). In the main thread only; elsewhere the block runs as it is."""
+    import signal
+
+    pending = []
+    try:
+        old = signal.signal(signal.SIGINT, lambda sig, frame: pending.append(frame))
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+        if pending:
+            if callable(old):
+                old(signal.SIGINT, pending[0])
+            elif old == signal.SIG_DFL:
+                signal.raise_signal(signal.SIGINT)
+
+
+class _NativeImports(importlib.abc.MetaPathFinder):
+    """Loads Dr.Jit and Mitsuba (the top-level packages, whose loading brings in their extensions) inside
+    :func:`deferred_interrupt`, whichever module imports them first."""
+
+    NAMES = ("drjit", "mitsuba")
+
+    def find_spec(self, name, path, target=None):
+        if name not in self.NAMES:
+            return None
+        for finder in sys.meta_path:
+            spec = None if finder is self or not hasattr(finder, "find_spec") else finder.find_spec(name, path, target)
+            if spec is not None and spec.loader is not None and hasattr(spec.loader, "exec_module"):
+                load = spec.loader.exec_module
+
+                def exec_module(module, _load=load):
+                    with deferred_interrupt():
+                        _load(module)
+                spec.loader.exec_module = exec_module
+                return spec
+        return None
+
+
+if not any(isinstance(f, _NativeImports) for f in sys.meta_path):
+    sys.meta_path.insert(0, _NativeImports())
 
 __version__ = "0.1.0"
 DEFAULT_VARIANT = "llvm_ad_rgb"
@@ -21,6 +93,13 @@ def set_variant(variant: str | None = None) -> str:
     import mitsuba as mi
 
     variant = variant or os.environ.get("GLINT_VARIANT") or DEFAULT_VARIANT
+    if variant not in mi.variants():
+        from glint_mi.config import ConfigError
+
+        source = "GLINT_VARIANT" if variant == os.environ.get("GLINT_VARIANT") else "variant"
+        raise ConfigError(f"{source} = {variant!r}: not a variant of this Mitsuba build; use one of "
+                          f"{', '.join(v for v in mi.variants() if v.endswith('_ad_rgb'))} (llvm_ad_rgb on a CPU, "
+                          f"cuda_ad_rgb on a GPU).")
     if variant.startswith("llvm"):
         check_llvm()  # raise a Python error instead of letting an old LLVM abort the process
     if mi.variant() != variant:

@@ -314,6 +314,12 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
             values = json.loads(path.read_text())
         except (OSError, json.JSONDecodeError) as e:
             raise ConfigError(f"{path}: cannot read the config ({e}); it must be a JSON object of TrainConfig fields.")
+        if not isinstance(values, dict):
+            raise ConfigError(f"{path}: holds a JSON {type(values).__name__}, not an object; write the fields as "
+                              f'{{"field": value, ...}}, e.g. {{"components": "all", "w_trans": 0}}.')
+        for key in ("preset", "variant"):
+            if key in values and not isinstance(values[key], str):
+                raise ConfigError(f"{path}: '{key}' = {values[key]!r}: must be a string.")
         base = cls.for_preset(values.get("preset", "quick"), values.get("variant", "supplement"))
         values = migrate(values)
         return cls.from_dict({**dataclasses.asdict(base), **values}, source=str(path))
@@ -330,6 +336,7 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
                 raise ConfigError(f"{source}: '{field}' = {getattr(self, field)!r}: {what}.")
 
         need(self.iterations >= 1, "iterations", "must be >= 1")
+        need(0 <= self.seed < 2 ** 63, "seed", "must be an integer in [0, 2^63) (numpy's generators take no negative seed)")
         for f in dataclasses.fields(self):  # weights, learning rates and schedule fractions
             v = getattr(self, f.name)
             if f.name.startswith(("w_", "lr_")):

@@ -211,7 +211,7 @@ def load_run(run: str | Path, full: bool = False, max_hits: int | None = None, c
     training resolution, or with ``full`` at its full resolution; ``max_hits`` and ``components`` as in
     :func:`load_model`."""
     from glint_mi.config import TrainConfig
-    from glint_mi.runs import RunError, load_run_dataset
+    from glint_mi.runs import RunError, load_run_dataset, read_checkpoint
 
     run = Path(run)
     if not (run / "config.json").exists() or not (run / "model").exists():
@@ -220,7 +220,7 @@ def load_run(run: str | Path, full: bool = False, max_hits: int | None = None, c
     cfg = TrainConfig.load(run / "config.json")
     ds = load_run_dataset(run, cfg, full=full or cfg.eval_full)
     ckpt = run / "checkpoint.npz"
-    train_s = float(np.load(ckpt)["elapsed"]) if ckpt.exists() else None
+    train_s = float(read_checkpoint(ckpt)["elapsed"]) if ckpt.exists() else None
     return load_model(run, cfg, max_hits, components), ds, cfg, train_s
 
 
@@ -273,14 +273,24 @@ def main(argv=None) -> int:
         print(f"error: --max-hits {args.max_hits}: give a positive hit budget (the run's is in "
               f"{args.run}/config.json, max_hits)", file=sys.stderr)
         return 2
+    from glint_mi.config import ConfigError
     from glint_mi.data import DatasetError
-    from glint_mi.runs import RunError
+    from glint_mi.runs import RunError, hold_run
 
     try:
+        if not (args.run / "config.json").exists() or not (args.run / "model").exists():
+            raise RunError(f"{args.run}: not a finished run (needs config.json and model/); train with "
+                           f"`python -m glint_mi.optimize scene.xml --out {args.run}`.")
+        # one process at a time on a run: two evaluations would move their renders over each other's, and an
+        # evaluation beside a resumed training would read a model that is being replaced
+        lock = hold_run(args.run)  # noqa: F841 (held until the process ends)
         integ, ds, cfg, train_s = load_run(args.run, full=args.full, max_hits=args.max_hits)
-    except (RunError, DatasetError) as e:
+    except (RunError, DatasetError, ConfigError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"\ninterrupted before any view was rendered; {args.run} is as it was", file=sys.stderr)
+        return 130
     try:
         out = args.run if args.max_hits is None else args.run / f"max_hits_{args.max_hits}"
         v0 = ds.test_views[0] if ds.test_views else None
@@ -289,6 +299,7 @@ def main(argv=None) -> int:
         res = evaluate(integ, ds.test_views, out, train_s, progress=not args.no_progress,
                        **eval_options(cfg, ds.root))
     except KeyboardInterrupt:
+        print(f"\ninterrupted: {args.run}/metrics.json is still the last complete evaluation", file=sys.stderr)
         return 130
     except DatasetError as e:
         print(f"error: {e}", file=sys.stderr)

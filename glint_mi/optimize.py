@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig
+from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig, migrate
 
 
 def parse_sets(items) -> dict:
@@ -30,29 +30,53 @@ def parse_sets(items) -> dict:
     return out
 
 
-def build_config(args, scene_props: dict | None = None) -> TrainConfig:
-    """Preset and variant, then the --config file, the scene XML's integrator properties, flags and --set."""
-    values = {}
+def build_config(args, scene_settings: dict | None = None, scene_path=None, note=None) -> TrainConfig:
+    """The run's config from its sources, each setting from one place: the preset and variant give defaults, the
+    method fixes its own fields; the --config file, the flags (--iterations, --seed) and --set override those (each
+    override of a method's field or of the --config file is said, in one line to stderr); the scene XML's settings
+    (components, max_order, kernel, grid_n, grid_k) are taken as they are, and any other source giving a different
+    value for one of them is refused, naming both."""
+    from glint_mi.methods import METHODS, config_for
+
+    note = note or (lambda m: print(f"note: {m}", file=sys.stderr))
+    method = getattr(args, "method", None) or "glint"
+    if method not in METHODS:
+        raise ConfigError(f"--method {method}: unknown; use one of {sorted(METHODS)}.")
+    sources: list[tuple[str, dict]] = []  # (name, values), later ones override earlier ones
+    sources.append((f"method {method}", dict(METHODS[method].overrides)))
     if args.config:
         TrainConfig.load(args.config)  # validates, with errors naming the file
-        values.update(json.loads(args.config.read_text()))
-    from glint_mi.methods import METHODS
-
-    method = getattr(args, "method", None) or "glint"
-    for key in ("components", "max_order"):  # the scene's, unless the method fixes it (3dgs: the interface alone)
-        if scene_props and key in scene_props and key not in METHODS.get(method, METHODS["glint"]).overrides:
-            values[key] = scene_props[key]
-    if args.iterations:
-        values["iterations"], values["epochs"] = args.iterations, 0.0
+        sources.append((f"--config {args.config}", migrate(json.loads(args.config.read_text()))))
+    flags = {}
+    if args.iterations is not None:
+        if args.iterations < 1:
+            raise ConfigError(f"--iterations {args.iterations}: give a positive iteration count, or leave it out for "
+                              f"the preset's budget (its epochs).")
+        flags["iterations"], flags["epochs"] = args.iterations, 0.0
     if args.seed is not None:
-        values["seed"] = args.seed
-    values.update(parse_sets(args.set))
-    preset = args.preset or values.pop("preset", None) or "quick"
-    variant = args.variant or values.pop("variant", None) or DEFAULT_VARIANT
-    values.pop("preset", None), values.pop("variant", None)
-    from glint_mi.methods import config_for
-
-    return config_for(method, preset, variant, **values)
+        flags["seed"] = args.seed
+    sources.append(("the command line", {**flags, **parse_sets(args.set)}))
+    values, where = {}, {}
+    for name, vals in sources:
+        for k, v in vals.items():
+            if k in values and values[k] != v and k not in ("epochs",):
+                note(f"{name} sets {k} = {v!r} over {where[k]}'s {values[k]!r}")
+            values[k], where[k] = v, name
+    for k, v in (scene_settings or {}).items():
+        if k in values and values[k] != v:
+            raise ConfigError(f"{scene_path or 'the scene XML'} states {k} = {v!r} but {where[k]} gives {values[k]!r}; "
+                              f"a setting is given in one place: remove the <{'integer' if k in ('max_order', 'grid_n', 'grid_k') else 'string'} "
+                              f"name=\"{k}\"> line from the XML, or drop the other.")
+        values[k] = v
+    fixed = {}
+    for key, flag in (("preset", args.preset), ("variant", args.variant)):
+        given = values.pop(key, None)
+        if flag and given is not None and given != flag:
+            raise ConfigError(f"--{key} {flag} but {where[key]} says {key} {given!r}; give one of them.")
+        fixed[key] = flag or given
+    preset = fixed["preset"] or "quick"
+    variant = fixed["variant"] or DEFAULT_VARIANT
+    return config_for("glint", preset, variant, **values)
 
 
 def main(argv=None) -> int:
@@ -79,11 +103,21 @@ def main(argv=None) -> int:
     from glint_mi.data.priors import PriorError
     from glint_mi.model.gaussians import GaussianDataError
     from glint_mi.scene import SceneError, read_scene
-    from glint_mi.runs import RunError, check_run_folder
+    from glint_mi.runs import RunError, check_run_folder, undo_new_run
     from glint_mi.training.trainer import Trainer
 
+    run = None
     try:
         if args.resume:
+            ignored = [flag for flag, given in (("a scene XML", args.scene), ("--out", args.out),
+                                                ("--preset", args.preset), ("--variant", args.variant),
+                                                ("--method", args.method != "glint"), ("--config", args.config),
+                                                ("--iterations", args.iterations is not None),
+                                                ("--seed", args.seed is not None), ("--set", args.set)) if given]
+            if ignored:
+                raise RunError(f"--resume {args.resume} continues the run as its config.json says; {', '.join(ignored)} "
+                               f"would not be read: drop {'it' if len(ignored) == 1 else 'them'}, or start a new run "
+                               f"with --out to train with other settings.")
             run = args.resume
             if not (run / "config.json").exists():
                 raise RunError(f"{run}/config.json: missing; --resume needs a run folder made by glint_mi.optimize.")
@@ -95,11 +129,16 @@ def main(argv=None) -> int:
             run = args.out or Path("runs") / args.scene.resolve().parent.name
             check_run_folder(run)  # before the dataset is read
             spec = read_scene(args.scene)
-            cfg = build_config(args, spec.integrator)
-            trainer = Trainer(run, cfg, scene=spec)
+            cfg = build_config(args, spec.settings, spec.path)
+            with undo_new_run(run):  # a set-up that fails or is interrupted leaves no half-made run folder
+                trainer = Trainer(run, cfg, scene=spec)
     except (ConfigError, SceneError, DatasetError, PriorError, GaussianDataError, RunError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("\ninterrupted during set-up: nothing was trained" + (f"; {run} is as it was" if run else ""),
+              file=sys.stderr)
+        return 130
     for role, what in trainer.report["init"].items():
         if role in trainer.sets:  # a set dropped before training was said so, with why, when it was dropped
             print(f"init {role}: {what}")

@@ -1,6 +1,7 @@
 """Run folders: atomic file writes, the run error, and reading a run's dataset as the run read it."""
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import socket
@@ -34,9 +35,52 @@ def check_run_folder(run: Path) -> None:
         raise RunError(f"--out {run}: is a file, not a folder; choose another --out.")
     if (run / "checkpoint.npz").exists():
         raise RunError(f"{run}: already holds a run; continue it with --resume {run} or choose --out.")
+    if run.is_dir() and not (run / "config.json").exists():
+        other = sorted(p.name for p in run.iterdir() if p.name != LOCK_NAME)
+        if other:
+            raise RunError(f"--out {run}: holds other files ({', '.join(other[:4])}{', ...' if len(other) > 4 else ''}"
+                           f"), not a run; a run writes config.json, model/, renders/ ... into its folder: choose a new "
+                           f"or empty folder.")
     parent = run if run.exists() else next((p for p in run.parents if p.exists()), Path("."))
     if not os.access(parent, os.W_OK):
         raise RunError(f"--out {run}: {parent} is not writable; choose another --out.")
+
+
+@contextlib.contextmanager
+def undo_new_run(run: Path):
+    """Around a new run's set-up: if it raises (a bad input found late, Ctrl-C), remove what the set-up wrote into
+    ``run`` (the folder itself when it did not exist before), so that no folder is left that looks like a run but
+    holds no checkpoint."""
+    import shutil
+
+    run = Path(run)
+    existed = run.exists()
+    before = set(run.iterdir()) if existed else set()
+    try:
+        yield
+    except BaseException:
+        if not existed:
+            shutil.rmtree(run, ignore_errors=True)
+        elif run.exists():
+            for p in set(run.iterdir()) - before:
+                shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+        raise
+
+
+def check_writable(folder: Path) -> None:
+    """Refuse a run folder this process cannot write into (a read-only copy, a read-only mount, an immutable folder):
+    probed by creating a file, since permission bits say nothing to root."""
+    import tempfile
+
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".write-probe-"):
+            pass
+        lock = Path(folder) / LOCK_NAME
+        if lock.exists():
+            open(lock, "a").close()
+    except OSError as e:
+        raise RunError(f"{folder}: not writable ({e.strerror}); training and evaluation write into the run folder: "
+                       f"make it writable (chmod -R u+w {folder}) or copy the run elsewhere and use the copy.") from None
 
 
 def hold_run(run: Path):
@@ -50,6 +94,7 @@ def hold_run(run: Path):
 
     run = Path(run)
     run.mkdir(parents=True, exist_ok=True)
+    check_writable(run)
     f = open(run / LOCK_NAME, "a+")
     try:
         fcntl.lockf(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -70,6 +115,25 @@ def hold_run(run: Path):
     f.write(f"pid {os.getpid()} on {socket.gethostname()}\n")
     f.flush()
     return f
+
+
+def read_checkpoint(path: Path) -> dict:
+    """Every array of a checkpoint, or a RunError naming the file when it is damaged (truncated by a full disk or a
+    copy that stopped): a checkpoint is written atomically, so a damaged one was not written by this run."""
+    import zipfile
+
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            z = {k: f[k] for k in f.files}
+        for key in ("iteration", "elapsed", "extent", "bounds", "rng", "report"):
+            if key not in z:
+                raise ValueError(f"no '{key}' array")
+        return z
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+        raise RunError(f"{path}: damaged, cannot be resumed ({e}); restore the file from a copy, or start the run "
+                       f"again in a new folder (--out).") from None
 
 
 def load_run_dataset(run_dir: Path, cfg, full: bool = False, log=None):

@@ -30,9 +30,6 @@ class SetSpec:
     role: str
     init: str = "sfm"            # sfm | grid | file | none
     filename: Path | None = None
-    kernel: str = "surfel"
-    grid_n: int | None = None
-    grid_k: int | None = None
 
 
 @dataclasses.dataclass
@@ -40,35 +37,57 @@ class OptimScene:
     path: Path
     dataset: Path
     sets: dict[str, SetSpec]
-    integrator: dict              # the integrator's other properties (components, max_order, ...)
+    settings: dict                # the training settings the XML states (SETTINGS): they join the config, which
+    #                               refuses a different value from any other source (optimize.build_config) and the
+    #                               trainer refuses a config that disagrees with them
     missing: str = "error"        # frames whose image is missing: error | skip (``missing_images``)
+
+    @property
+    def integrator(self) -> dict:  # the name before settings were split from the sets (scripts of earlier sessions)
+        return dict(self.settings)
+
+
+# Training settings an optimisation scene may state, where they live in the XML, and their element type. They are
+# TrainConfig fields: the config owns them, the XML may give them (python -m glint_mi.scene --kernel ...), and a value
+# given both in the XML and elsewhere (a method, --config, --set) must agree. kernel: one for every set; grid_n and
+# grid_k: on the shape initialised on the grid.
+SETTINGS = {"components": ("integrator", "string"), "max_order": ("integrator", "integer"),
+            "kernel": ("shape", "string"), "grid_n": ("grid shape", "integer"), "grid_k": ("grid shape", "integer")}
 
 
 # ------------------------------------------------------------------ writer
-def scene_xml(dataset: str | Path, components: str = "auto", kernel: str = "surfel", grid_n: int | None = None,
-              grid_k: int | None = None, relative_to: Path | None = None, missing: str = "error") -> str:
-    """The XML text; without ``grid_n``/``grid_k`` the training config's values apply (presets size them)."""
+def scene_xml(dataset: str | Path, components: str | None = None, kernel: str | None = None,
+              grid_n: int | None = None, grid_k: int | None = None, relative_to: Path | None = None,
+              missing: str = "error", max_order: int | None = None) -> str:
+    """The XML text. A setting left None is not written: the training config's value applies (the preset's, a
+    method's, --set); one given here is stated in the XML, and the config must then agree with it."""
+    from xml.sax.saxutils import quoteattr
+
     ds = Path(dataset).resolve()
     if relative_to is not None:
         try:
             ds = ds.relative_to(Path(relative_to).resolve())
         except ValueError:
             pass
+    prop = lambda tag, name, value, ind: f'\n{ind}<{tag} name="{name}" value={quoteattr(str(value))}/>'
+    kern = prop("string", "kernel", kernel, " " * 12) if kernel is not None else ""
     shape = lambda role, init, extra="": (
-        f'        <shape type="glint_gaussians" name="{role}">\n'
-        f'            <string name="init" value="{init}"/>\n'
-        f'            <string name="kernel" value="{kernel}"/>{extra}\n        </shape>')
-    grid = "".join(f'\n            <integer name="{k}" value="{v}"/>'
-                   for k, v in (("grid_n", grid_n), ("grid_k", grid_k)) if v is not None)
-    skip = ('\n        <!-- frames whose image is missing are left out -->\n'
-            '        <string name="missing_images" value="skip"/>') if missing == "skip" else ""
+        f'        <shape type="glint_gaussians" name="{role}">'
+        f'{prop("string", "init", init, " " * 12)}{kern}{extra}\n        </shape>')
+    grid = "".join(prop("integer", k, v, " " * 12) for k, v in (("grid_n", grid_n), ("grid_k", grid_k))
+                   if v is not None)
+    skip = ('\n        <!-- frames whose image is missing are left out -->'
+            + prop("string", "missing_images", "skip", " " * 8)) if missing == "skip" else ""
+    stated = "".join(prop(tag, k, v, " " * 8) for k, v, tag in (("components", components, "string"),
+                                                                 ("max_order", max_order, "integer"))
+                     if v is not None)
     return f"""<scene version="3.0.0">
     <!-- GLINT optimisation input: python -m glint_mi.optimize <this file>
          init: sfm = the dataset's SfM points (SfM runs if it has none), grid = N^3 cells x K points over the scene
-         bounds (grid_n, grid_k; the paper: 32, 5; default: the training preset's), none = leave the set out. -->
-    <integrator type="glint" id="integrator">
-        <string name="dataset" value="{ds}"/>{skip}
-        <string name="components" value="{components}"/>
+         bounds, none = leave the set out. Training settings (components, max_order, kernel, grid_n, grid_k) are
+         the training config's (its preset, a method, optimize's set option); one written here must agree
+         with it. -->
+    <integrator type="glint" id="integrator">{prop("string", "dataset", ds, " " * 8)}{skip}{stated}
 {shape("interface", "sfm")}
 {shape("transmission", "sfm")}
 {shape("reflection", "grid", grid)}
@@ -78,31 +97,53 @@ def scene_xml(dataset: str | Path, components: str = "auto", kernel: str = "surf
 
 
 # ------------------------------------------------------------------ parser
-def _props(elem) -> dict:
-    out = {}
-    for child in elem:
-        if child.tag in ("string", "integer", "float", "boolean") and "name" in child.attrib:
-            v = child.attrib.get("value", "")
-            out[child.attrib["name"]] = {"integer": int, "float": float,
-                                         "boolean": lambda s: s.lower() == "true"}.get(child.tag, str)(v)
-    return out
+PROPERTY_TAGS = ("string", "integer", "float", "boolean")
+# the properties an optimisation scene's integrator and shapes take (what scene_xml writes, and what it documents),
+# with their element type
+INTEGRATOR_KEYS = {"dataset": "string", "missing_images": "string", "components": "string", "max_order": "integer"}
+SHAPE_KEYS = {"role": "string", "init": "string", "kernel": "string", "filename": "string", "grid_n": "integer",
+              "grid_k": "integer"}
 
 
-# the properties an optimisation scene's integrator and shapes take (what scene_xml writes, and what it documents)
-INTEGRATOR_KEYS = ("dataset", "missing_images", "components", "max_order")
-SHAPE_KEYS = ("role", "init", "kernel", "filename", "grid_n", "grid_k")
-
-
-def _known(path: Path, where: str, props: dict, keys: tuple) -> None:
-    """A misspelled property would be ignored without a word: refuse it, naming the valid ones."""
+def _props(path: Path, where: str, elem, keys: dict, children: tuple = ()) -> dict:
+    """The properties of ``elem``, each checked: a known name (a misspelled one would be ignored without a word),
+    the element type that name takes (``<int>`` or ``<integer name="components">`` would be, too) and a value of
+    that type; ``children`` are the other elements ``elem`` may hold."""
     import difflib
 
-    for k in props:
-        if k not in keys:
-            near = difflib.get_close_matches(k, keys, n=1)
-            raise SceneError(f"{path}: {where} has no property '{k}'"
+    out = {}
+    for child in elem:
+        if not isinstance(child.tag, str):  # a comment
+            continue
+        if child.tag in children:
+            continue
+        name = child.attrib.get("name")
+        if child.tag not in PROPERTY_TAGS:
+            near = difflib.get_close_matches(child.tag, PROPERTY_TAGS + children, n=1)
+            raise SceneError(f"{path}: {where} holds <{child.tag}"
+                             + (f' name="{name}"' if name else "") + ">, which is not read"
+                             + (f" (did you mean <{near[0]}>?)" if near else "")
+                             + f"; its elements are {', '.join(f'<{t}>' for t in PROPERTY_TAGS + children)}.")
+        if name is None or "value" not in child.attrib:
+            raise SceneError(f"{path}: {where}: <{child.tag}> needs name=\"...\" and value=\"...\" attributes.")
+        if name not in keys:
+            near = difflib.get_close_matches(name, list(keys), n=1)
+            raise SceneError(f"{path}: {where} has no property '{name}'"
                              + (f" (did you mean '{near[0]}'?)" if near else "")
                              + f"; its properties are {', '.join(keys)}.")
+        if name in out:
+            raise SceneError(f"{path}: {where} gives '{name}' twice; keep one.")
+        want, v = keys[name], child.attrib["value"]
+        if child.tag != want:
+            raise SceneError(f"{path}: {where}: '{name}' is given as <{child.tag}>; write it as "
+                             f"<{want} name=\"{name}\" value=\"{v}\"/>.")
+        if want == "integer":
+            try:
+                v = int(v)
+            except ValueError:
+                raise SceneError(f"{path}: {where}: '{name}' = {v!r} is not an integer.") from None
+        out[name] = v
+    return out
 
 
 def read_scene(path: str | Path) -> OptimScene:
@@ -112,13 +153,12 @@ def read_scene(path: str | Path) -> OptimScene:
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as e:
-        raise SceneError(f"{path}: not valid XML ({e}).")
+        raise SceneError(f"{path}: not valid XML ({e}); a path holding & or < must be written &amp; or &lt;.")
     integ = next((e for e in root.iter("integrator") if e.attrib.get("type") == "glint"), None)
     if integ is None:
         raise SceneError(f"{path}: no <integrator type=\"glint\">; write the file with "
                          f"`python -m glint_mi.scene DATASET > {path.name}`.")
-    props = _props(integ)
-    _known(path, "the glint integrator", props, INTEGRATOR_KEYS)
+    props = _props(path, "the glint integrator", integ, INTEGRATOR_KEYS, children=("shape",))
     if not props.get("dataset"):
         raise SceneError(f"{path}: the glint integrator has no <string name=\"dataset\" value=\"...\"/>; add the "
                          f"dataset folder (COLMAP, transforms.json or generated layout) to it.")
@@ -128,33 +168,67 @@ def read_scene(path: str | Path) -> OptimScene:
         raise SceneError(f"{path}: missing_images = {missing!r}; use error or skip.")
     if not dataset.is_absolute():
         dataset = (path.parent / dataset).resolve()
-    sets = {}
+    settings = dict(props)  # components, max_order
+    if "max_order" in settings and settings["max_order"] not in (1, 2):
+        raise SceneError(f"{path}: max_order = {settings['max_order']}; use 1 (first order) or 2 (the release's "
+                         f"second-surface reflection).")
+    sets, kernels = {}, {}
     for shape in integ.iter("shape"):
         role = shape.attrib.get("name", "")
-        p = _props(shape)
-        _known(path, f"<shape name=\"{role}\">", p, SHAPE_KEYS)
+        p = _props(path, f"<shape name=\"{role}\">", shape, SHAPE_KEYS)
         role = p.get("role", role)
         if role not in cv.ROLES:
             raise SceneError(f"{path}: <shape name=\"{role}\">: the name must be one of {cv.ROLES}.")
-        kernel = p.get("kernel", "surfel")
-        if kernel not in cv.KERNELS:
-            raise SceneError(f"{path}: shape '{role}': kernel '{kernel}' unknown; use one of {cv.KERNELS}.")
+        if role in sets or role in kernels:
+            raise SceneError(f"{path}: two shapes for the {role} set; keep one.")
+        if "kernel" in p:
+            if p["kernel"] not in cv.KERNELS:
+                raise SceneError(f"{path}: shape '{role}': kernel '{p['kernel']}' unknown; use one of {cv.KERNELS}.")
+            kernels[role] = p["kernel"]
         if "filename" in p:
             f = Path(p["filename"])
             f = f if f.is_absolute() else path.parent / f
             if not f.exists():
                 raise SceneError(f"{path}: shape '{role}': file {f} does not exist.")
-            sets[role] = SetSpec(role, "file", f, kernel)
+            sets[role] = SetSpec(role, "file", f)
             continue
         init = p.get("init")
         if init not in ("sfm", "grid", "none"):
             raise SceneError(f"{path}: shape '{role}': give <string name=\"init\" value=\"sfm|grid|none\"/> or a "
                              f"<string name=\"filename\"/> (a trained .ply); got init={init!r}.")
+        for key in ("grid_n", "grid_k"):
+            if key in p and init != "grid":
+                raise SceneError(f"{path}: shape '{role}': {key} applies to init=grid only; remove it.")
+            if key in p and p[key] < 1:
+                raise SceneError(f"{path}: shape '{role}': {key} = {p[key]}; give at least 1 (the paper: "
+                                 f"grid_n 32, grid_k 5), or leave it out for the training preset's.")
+            if key in p:
+                if settings.get(key, p[key]) != p[key]:
+                    raise SceneError(f"{path}: two grid shapes give {key} = {settings[key]} and {p[key]}; the "
+                                     f"reflection grid has one size.")
+                settings[key] = p[key]
         if init != "none":
-            sets[role] = SetSpec(role, init, None, kernel, p.get("grid_n"), p.get("grid_k"))
+            sets[role] = SetSpec(role, init, None)
+    if len(set(kernels.values())) > 1:
+        raise SceneError(f"{path}: the shapes give different kernels ({', '.join(f'{r}: {k}' for r, k in kernels.items())}"
+                         f"); every set of a run has one kernel (the config's 'kernel'): give it once, the same on "
+                         f"each shape, or leave it out.")
+    if kernels:
+        settings["kernel"] = next(iter(kernels.values()))
     if "interface" not in sets:
         raise SceneError(f"{path}: no interface set; the glint integrator needs <shape name=\"interface\">.")
-    return OptimScene(path, dataset, sets, props, missing)
+    return OptimScene(path, dataset, sets, settings, missing)
+
+
+def check_settings(spec: OptimScene, cfg) -> None:
+    """Refuse a config that disagrees with a training setting the scene XML states (one setting, one value)."""
+    from glint_mi.config import ConfigError
+
+    for key, value in spec.settings.items():
+        if getattr(cfg, key) != value:
+            raise ConfigError(f"{spec.path}: states {key} = {value!r} but the training config has {key} = "
+                              f"{getattr(cfg, key)!r}; a setting is given in one place: remove it from the XML, or "
+                              f"set the config to {value!r}.")
 
 
 # ---------------------------------------------------------- initialisation
@@ -343,7 +417,7 @@ def initial_sets(scene: OptimScene, ds: Dataset, cfg, rng: np.random.Generator, 
             report[role] = f"{len(gs)} Gaussians from {report['sfm_points']} SfM points" + (
                 f" + {report['random_points']}" if "random_points" in report else "")
         else:
-            n, k = spec.grid_n or cfg.grid_n, spec.grid_k or cfg.grid_k
+            n, k = cfg.grid_n, cfg.grid_k
             gp = grid_points(lo, hi, n, k, rng)
             gs = points_set(gp, np.full((len(gp), 3), 128, np.uint8), cfg.init_opacity, cfg.sh_degree, rng)
             report[role] = f"{len(gs)} Gaussians on the {n}^3 x {k} grid"
@@ -356,14 +430,30 @@ def main(argv=None) -> int:
                                  description="Print an optimisation scene XML for a dataset (redirect it to a file); "
                                              "what reading the dataset found goes to stderr.")
     ap.add_argument("dataset", type=Path, help="COLMAP folder, transforms.json or a generated scene folder")
-    ap.add_argument("--components", default="auto")
-    ap.add_argument("--kernel", default="surfel", choices=cv.KERNELS)
+    ap.add_argument("--components", help="auto | all | a comma list of sets; written into the XML (default: not "
+                                          "written, the training config's applies)")
+    ap.add_argument("--kernel", choices=cv.KERNELS, help="every set's kernel, written into the XML (default: not "
+                                                         "written; the config's, surfel for glint)")
+    ap.add_argument("--max-order", type=int, choices=(1, 2), help="written into the XML (default: the config's, 1)")
     ap.add_argument("--grid-n", type=int, help="reflection grid cells per axis (default: the preset's; paper 32)")
     ap.add_argument("--grid-k", type=int, help="random points per cell (default: the preset's; paper 5)")
     ap.add_argument("--skip-missing", action="store_true",
                     help="leave out the frames whose image is missing (default: refuse, listing them)")
     args = ap.parse_args(argv)
     missing = "skip" if args.skip_missing else "error"
+    for flag, value in (("--grid-n", args.grid_n), ("--grid-k", args.grid_k)):
+        if value is not None and value < 1:
+            print(f"error: {flag} {value}: give at least 1 (the paper: --grid-n 32 --grid-k 5), or leave it out for "
+                  f"the training preset's.", file=sys.stderr)
+            return 2
+    if args.components is not None:
+        from glint_mi.config import ConfigError, TrainConfig
+
+        try:
+            TrainConfig.for_preset("quick", components=args.components)
+        except ConfigError as e:
+            print(f"error: --components {args.components}: {str(e).split(': ', 2)[-1]}", file=sys.stderr)
+            return 2
     try:
         ds = load_dataset(args.dataset, missing=missing, log=lambda m: print(m, file=sys.stderr))
     except DatasetError as e:
@@ -377,7 +467,8 @@ def main(argv=None) -> int:
         for line in problems:
             print(f"error: {line}", file=sys.stderr)
         return 2
-    sys.stdout.write(scene_xml(args.dataset, args.components, args.kernel, args.grid_n, args.grid_k, missing=missing))
+    sys.stdout.write(scene_xml(args.dataset, args.components, args.kernel, args.grid_n, args.grid_k, missing=missing,
+                               max_order=args.max_order))
     return 0
 
 

@@ -1,4 +1,9 @@
 """Shared fixtures: the Mitsuba variant (with plugins) and small Gaussian scenes."""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -113,3 +118,35 @@ def tiny_cfg(**kw):
     from glint_mi.config import TrainConfig
 
     return TrainConfig.for_preset("tiny", **{"log_every": 1000, "trans_albedo": "masks", **kw})
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """A tiny generated room with derived priors (transforms.json, a COLMAP model, priors/), 6 views of 48 x 27."""
+    from glint_mi.dataset.generate import Preset, make_scene
+    from glint_mi.dataset.priors import derive_priors
+
+    out = tmp_path_factory.mktemp("inputs") / "room"
+    make_scene(out, seed=3, preset=Preset.named("tiny", views=6, spp=4), sfm="none")
+    derive_priors(out, 0)
+    return out
+
+
+def copy_tree(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return dst
+
+
+def files_of(folder: Path) -> set:
+    return {p.relative_to(folder) for p in folder.rglob("*")}
+
+
+def cli(*args, cwd=ROOT, env=None):
+    """(CompletedProcess, the lines of stderr that start with 'error:') of ``python -m ARGS``."""
+    r = subprocess.run([sys.executable, "-m", *map(str, args)], capture_output=True, text=True, cwd=cwd,
+                       timeout=600, env=env)
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    return r, errors

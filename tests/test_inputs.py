@@ -2,8 +2,6 @@
 from the command line, before any work, with nothing written."""
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,33 +17,9 @@ from glint_mi.data.priors import PriorError, check_priors  # noqa: E402
 from glint_mi.dataset.generate import Preset, make_scene  # noqa: E402
 from glint_mi.scene import SceneError, read_scene, scene_xml  # noqa: E402
 
+from conftest import cli as _cli, copy_tree as _copy, files_of as _files  # noqa: E402
+
 ROOT = Path(__file__).resolve().parent.parent
-
-
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    """A tiny generated room with derived priors (transforms.json, a COLMAP model, priors/)."""
-    from glint_mi.dataset.priors import derive_priors
-
-    out = tmp_path_factory.mktemp("inputs") / "room"
-    make_scene(out, seed=3, preset=Preset.named("tiny", views=6, spp=4), sfm="none")
-    derive_priors(out, 0)
-    return out
-
-
-def _copy(src: Path, dst: Path) -> Path:
-    shutil.copytree(src, dst)
-    return dst
-
-
-def _files(folder: Path) -> set:
-    return {p.relative_to(folder) for p in folder.rglob("*")}
-
-
-def _cli(*args, cwd=ROOT):
-    r = subprocess.run([sys.executable, "-m", *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=600)
-    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
-    return r, errors
 
 
 @pytest.mark.parametrize("field, value, match", [
@@ -138,7 +112,7 @@ def test_partial_and_broken_priors_are_listed_one_line_each(tiny, tmp_path):
 def test_scene_xml_names_are_checked(tiny, tmp_path):
     """Misspelled optimisation-scene properties (before: `componets` and `kernal` were ignored, components stayed
     auto); optimize exits 2 with the key, the nearest valid one and the list, and makes no run folder."""
-    text = scene_xml(tiny)
+    text = scene_xml(tiny, components="auto", kernel="surfel")
     for a, b, match in (('name="components"', 'name="componets"', r"no property 'componets' \(did you mean "
                                                                    r"'components'\?\)"),
                         ('name="kernel"', 'name="kernal"', r"<shape name=\"interface\"> has no property 'kernal'")):

@@ -241,6 +241,10 @@ def load_dataset(root: str | Path, downscale: int = 1, missing: str = "error", c
         small = None if f.name in undist else _images_k(f, root, k)
         if small is not None:  # a downscaled copy that ships with the capture
             ws, hs = image_size(small)
+            if abs(ws - w / k) > 1 or abs(hs - h / k) > 1:  # a stale or cropped copy: its pixels are not the rays
+                raise DatasetError(f"{small}: {ws} x {hs}, but downscale {k} of the {w} x {h} image {path.name} is "
+                                   f"{w / k:g} x {h / k:g}; write {small.parent.name}/ again from the images, or "
+                                   f"remove it (the images are then downscaled on loading).")
             K = K * np.array([[ws / w], [hs / h], [1.0]])
             views.append(View(f.name, small, ws, hs, K, f.c2w, downscale=k))
             continue
@@ -263,6 +267,10 @@ def load_dataset(root: str | Path, downscale: int = 1, missing: str = "error", c
             split = {s: [n for n in split[s] if n in names] for s in ("train", "test")}
         elif unknown:
             raise DatasetError(f"{where}: names view(s) the camera file does not list: {unknown[:5]}.")
+        both = sorted(set(split["train"]) & set(split["test"]))
+        if both:
+            raise DatasetError(f"{where}: view(s) {both[:5]} are in both 'train' and 'test'; a test view trained on "
+                               f"measures nothing: keep each view in one list.")
     else:  # protocol: every 8th view from 0 is a test view
         test = names[::8]
         split = {"train": [n for n in names if n not in test], "test": test}

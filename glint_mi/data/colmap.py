@@ -127,6 +127,9 @@ def read_observations(sparse: Path) -> dict[str, tuple[np.ndarray, np.ndarray]] 
     return obs
 
 
+QUAT_TOLERANCE = 1e-3  # |q| - 1 beyond this is not a rounded unit quaternion but a broken pose
+
+
 def read_frames(root: Path, images_dir: Path | None = None) -> tuple[list[Frame], np.ndarray, np.ndarray, Path]:
     """(frames sorted by image name, points [P,3], colours [P,3] uint8, the model folder)."""
     sparse = model_folder(root)
@@ -137,7 +140,13 @@ def read_frames(root: Path, images_dir: Path | None = None) -> tuple[list[Frame]
         if cid not in cams:
             raise DatasetError(f"{sparse}/images: image '{name}' uses camera {cid}, which cameras.* does not define.")
         model, w, h, params = cams[cid]
-        R_w2c = qvec_to_rotmat(q / np.linalg.norm(q))
+        q, t = np.asarray(q, float), np.asarray(t, float)
+        norm = float(np.linalg.norm(q)) if np.isfinite(q).all() else float("nan")
+        if not (abs(norm - 1.0) <= QUAT_TOLERANCE) or not np.isfinite(t).all():
+            pose = f"QW QX QY QZ = {' '.join(f'{x:g}' for x in q)}, T = {' '.join(f'{x:g}' for x in t)}"
+            raise DatasetError(f"{sparse}/images: image '{name}' has the pose {pose}: the quaternion must be a finite "
+                               f"unit quaternion (|q| = {norm:g}) and T finite; export the model from COLMAP again.")
+        R_w2c = qvec_to_rotmat(q / norm)
         c2w = np.eye(4)
         c2w[:3, :3] = R_w2c.T @ MI_TO_COLMAP
         c2w[:3, 3] = -R_w2c.T @ t

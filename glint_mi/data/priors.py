@@ -134,8 +134,18 @@ def load_prior(root: Path, view, kind: str, conventions: dict | None = None) -> 
         return None
     conv = conventions or prior_conventions(root)
     encoded = p.suffix.lower() in (".png", ".tif", ".tiff")
-    arr = np.load(p) if p.suffix == ".npy" else _read_exr(p, kind) if p.suffix == ".exr" else _read_image(p)
-    arr = np.asarray(arr, np.float32)
+    try:
+        arr = np.load(p, allow_pickle=False) if p.suffix == ".npy" else (
+            _read_exr(p, kind) if p.suffix == ".exr" else _read_image(p))
+        arr = np.asarray(arr, np.float32)
+    except PriorError:
+        raise
+    except Exception as e:  # numpy and OpenEXR raise ValueError, OSError, EOFError, RuntimeError... on a broken file
+        why = str(e).splitlines()[0] if str(e) else "truncated?"
+        raise PriorError(f"{p}: cannot read the {kind} prior ({type(e).__name__}: {why}); write it again (a float "
+                         f"array: .npy / .exr / .png / .tif).") from None
+    if arr.ndim not in (2, 3):
+        raise PriorError(f"{p}: shape {arr.shape}; a {kind} prior is an [H, W] or [H, W, C] map.")
     if kind in ("depth", "glass") and arr.ndim == 3:
         arr = arr[..., 0]
     if kind not in ("depth", "glass"):

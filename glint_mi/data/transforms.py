@@ -11,7 +11,7 @@ import numpy as np
 
 from glint_mi.conventions import MI_TO_GL
 from glint_mi.data.errors import DatasetError
-from glint_mi.data.frames import Frame
+from glint_mi.data.frames import Frame, check_pose
 from glint_mi.data.images import find_image, image_size
 
 DISTORTION_KEYS = ("k1", "k2", "k3", "k4", "p1", "p2")
@@ -53,6 +53,7 @@ def read_frames(path: Path) -> tuple[list[Frame], dict | None, np.ndarray | None
     if not frames_in:
         raise DatasetError(f"{path}: field 'frames' is missing or empty.")
     frames = []
+    sizes: dict = {}  # image size -> the first frame of that size whose intrinsics are the file's shared ones
     for i, fr in enumerate(frames_in):
         get = lambda k: fr.get(k, meta.get(k))
         where = f"{path}: frames[{i}]"
@@ -63,6 +64,9 @@ def read_frames(path: Path) -> tuple[list[Frame], dict | None, np.ndarray | None
         w, h = get("w"), get("h")
         if (w is None or h is None) and img is not None:
             w, h = image_size(img)
+            shared = [k for k in ("fl_x", "fl_y", "cx", "cy") if k not in fr and k in meta]
+            if shared:  # pixel intrinsics shared by images whose size each image gives: one size for all
+                sizes.setdefault((int(w), int(h)), (i, fp, shared))
         for key in ("w", "h"):
             value = get(key)
             if value is not None and not (_number(value) and float(value) == int(value) and int(value) > 0):
@@ -92,14 +96,23 @@ def read_frames(path: Path) -> tuple[list[Frame], dict | None, np.ndarray | None
             if not _number(value):
                 raise DatasetError(f"{where}: '{key}' = {value!r}: the principal point must be a finite number of "
                                    f"pixels (or leave it out: the image centre).")
-        m = np.asarray(fr["transform_matrix"], float)
+        try:
+            m = np.asarray(fr["transform_matrix"], float)
+        except (TypeError, ValueError):
+            m = np.zeros(0)
         if m.shape != (4, 4) or not np.isfinite(m).all():
             raise DatasetError(f"{where}.transform_matrix must be a finite 4x4 matrix.")
+        check_pose(m, f"{where}.transform_matrix")
         c2w = m.copy()
         c2w[:3, :3] = m[:3, :3] @ MI_TO_GL
         model, extra = _camera_model(get, where)
         frames.append(Frame(Path(fp).stem, img, fp, int(w or 0), int(h or 0), model,
                             [float(fx), float(fy), float(cx), float(cy), *extra], c2w))
+    if len(sizes) > 1:
+        (w0, h0), (i0, f0, _), (w1, h1), (i1, f1, keys) = *list(sizes.items())[0], *list(sizes.items())[1]
+        raise DatasetError(f"{path}: frames[{i1}] ({f1}) is {w1} x {h1} but frames[{i0}] ({f0}) is {w0} x {h0}, and "
+                           f"both use the shared {', '.join(keys)}: intrinsics in pixels fit one image size. Give the "
+                           f"frames of another size their own w, h, fl_x, fl_y, cx, cy, or resize the images.")
     split = None
     if meta.get("train_filenames") is not None and meta.get("test_filenames") is not None:
         split = {"train": [Path(f).stem for f in meta["train_filenames"]],

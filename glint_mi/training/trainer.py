@@ -35,8 +35,8 @@ from glint_mi.model.examples import gaussian_scene_dict
 from glint_mi.model.gaussians import GaussianSet
 from glint_mi.model.files import TRAINING_AOVS, integrator_props, model_xml, shape_props
 from glint_mi.model.render import floats
-from glint_mi.runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset
-from glint_mi.scene import OptimScene, initial_sets, read_scene
+from glint_mi.runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset, read_checkpoint
+from glint_mi.scene import OptimScene, check_settings, initial_sets, read_scene
 from glint_mi.training.optim import RAW_FIELDS, Adam, raw_gradients
 from glint_mi.training.strategy import Strategy
 
@@ -64,6 +64,18 @@ def budget_full(out: dict, max_hits: int, read: bool = True):
         return float(share[0])
     dr.schedule(share)
     return share
+
+
+def check_patch(cfg, ds) -> None:
+    """Refuse a patch that does not fit in a training view (a large downscale leaves small images), before the run
+    folder is made."""
+    from glint_mi.config import ConfigError
+
+    small = min(ds.train_views, key=lambda v: min(v.width, v.height))
+    if cfg.patch > min(small.width, small.height):
+        raise ConfigError(f"'patch' = {cfg.patch}: a {cfg.patch} x {cfg.patch} patch does not fit in training view "
+                          f"'{small.name}' ({small.width} x {small.height} at downscale {cfg.downscale}); use "
+                          f"--set patch={max(3, min(small.width, small.height))} or a smaller downscale.")
 
 
 class Trainer:
@@ -122,6 +134,8 @@ class Trainer:
             problems = check_priors(self.ds.root, self.ds.train_views)
             if problems:
                 raise PriorError("\n".join(problems))
+        check_settings(self.scene_spec, self.cfg)
+        check_patch(self.cfg, self.ds)
         self._set_budget()
         sets, (lo, hi, extent), rep = initial_sets(self.scene_spec, self.ds, self.cfg, self.rng, self.log)
         roles = self.cfg.roles()
@@ -666,16 +680,20 @@ class Trainer:
 
     def _load_checkpoint(self):
         path = self.run_dir / "checkpoint.npz"
+        if not self.run_dir.is_dir():
+            raise RunError(f"{self.run_dir}: no such run folder; --resume needs a folder made by glint_mi.optimize.")
+        # before the checkpoint is looked at: another process may be setting the run up or writing its checkpoint
+        self._lock = hold_run(self.run_dir)
         if not path.exists():
-            raise RunError(f"{path}: no checkpoint to resume; start the run with `python -m glint_mi.optimize "
-                           f"scene.xml --out {self.run_dir}`.")
-        self._lock = hold_run(self.run_dir)  # before the checkpoint is read: another process may be writing it
+            raise RunError(f"{path}: no checkpoint to resume (the run was stopped before its first checkpoint); "
+                           f"start it again with `python -m glint_mi.optimize scene.xml --out {self.run_dir}` after "
+                           f"removing the folder.")
         info = json.loads((self.run_dir / "run.json").read_text())
         self.scene_spec = read_scene(info["scene"]) if Path(info["scene"]).exists() else None
         if self.ds is None:
             self.ds = load_run_dataset(self.run_dir, self.cfg, log=self.log)
         self._set_budget()
-        z = dict(np.load(path, allow_pickle=False))
+        z = read_checkpoint(path)
         self.it, self.elapsed = int(z["iteration"]), float(z["elapsed"])
         self.extent = float(z["extent"])
         self.bounds = (z["bounds"][0], z["bounds"][1])
