@@ -88,16 +88,18 @@ __version__ = "0.1.0"
 DEFAULT_VARIANT = "llvm_ad_rgb"
 
 
+class VariantError(ValueError):
+    """A Mitsuba variant this build does not have (``$GLINT_VARIANT``); the message lists the ones it has."""
+
+
 def set_variant(variant: str | None = None) -> str:
     """Select the Mitsuba variant (``llvm_ad_rgb`` by default; ``cuda_ad_rgb`` on a GPU) and register the plugins."""
     import mitsuba as mi
 
     variant = variant or os.environ.get("GLINT_VARIANT") or DEFAULT_VARIANT
     if variant not in mi.variants():
-        from glint_mi.config import ConfigError
-
         source = "GLINT_VARIANT" if variant == os.environ.get("GLINT_VARIANT") else "variant"
-        raise ConfigError(f"{source} = {variant!r}: not a variant of this Mitsuba build; use one of "
+        raise VariantError(f"{source} = {variant!r}: not a variant of this Mitsuba build; use one of "
                           f"{', '.join(v for v in mi.variants() if v.endswith('_ad_rgb'))} (llvm_ad_rgb on a CPU, "
                           f"cuda_ad_rgb on a GPU).")
     if variant.startswith("llvm"):
@@ -126,4 +128,4 @@ def load_dict(desc: dict):
     return mi.load_dict(desc)
 
 
-__all__ = ["LLVMError", "check_llvm", "set_variant", "load_file", "load_dict", "__version__"]
+__all__ = ["LLVMError", "VariantError", "check_llvm", "set_variant", "load_file", "load_dict", "__version__"]

@@ -48,6 +48,9 @@ class RunConfig:
     #                                      images_<k>/): photos, priors, training and evaluation alike
     checkpoint_every: int = 200
     log_every: int = 10
+    threads: int = 0                     # Dr.Jit's LLVM worker threads (0: every core). 1 makes a run, and a resumed
+    #                                      one, the same bit for bit; with more, the gradients' atomic sums add in
+    #                                      the order the threads finish: runs differ by float rounding that grows
 
 
 @dataclasses.dataclass
@@ -336,7 +339,8 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
                 raise ConfigError(f"{source}: '{field}' = {getattr(self, field)!r}: {what}.")
 
         need(self.iterations >= 1, "iterations", "must be >= 1")
-        need(0 <= self.seed < 2 ** 63, "seed", "must be an integer in [0, 2^63) (numpy's generators take no negative seed)")
+        need(0 <= self.seed < 2 ** 63, "seed", "must be an integer in [0, 2^63) (numpy's generators take no negative "
+                                               "seed)")
         for f in dataclasses.fields(self):  # weights, learning rates and schedule fractions
             v = getattr(self, f.name)
             if f.name.startswith(("w_", "lr_")):
@@ -345,7 +349,7 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
                     "warmup", "depth_refit", "prior_decay", "densify_top"):
                 need(0 <= v <= 1, f.name, "is a fraction of the run (or of a set), between 0 and 1")
         for name, low in (("max_hits", 1), ("max_gaussians", 1), ("log_every", 1), ("checkpoint_every", 0),
-                          ("eval_every", 0), ("grid_n", 1), ("grid_k", 1), ("init_min_points", 0),
+                          ("threads", 0), ("eval_every", 0), ("grid_n", 1), ("grid_k", 1), ("init_min_points", 0),
                           ("env_levels", 1)):
             need(getattr(self, name) >= low, name, f"must be >= {low}")
         need(0 < self.init_opacity < 1 and 0 <= self.prune_opacity < 1, "init_opacity",

@@ -275,6 +275,7 @@ def main(argv=None) -> int:
         return 2
     from glint_mi.config import ConfigError
     from glint_mi.data import DatasetError
+    from glint_mi import VariantError
     from glint_mi.runs import RunError, hold_run
 
     try:
@@ -285,7 +286,7 @@ def main(argv=None) -> int:
         # evaluation beside a resumed training would read a model that is being replaced
         lock = hold_run(args.run)  # noqa: F841 (held until the process ends)
         integ, ds, cfg, train_s = load_run(args.run, full=args.full, max_hits=args.max_hits)
-    except (RunError, DatasetError, ConfigError) as e:
+    except (RunError, DatasetError, ConfigError, VariantError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -64,9 +64,10 @@ def build_config(args, scene_settings: dict | None = None, scene_path=None, note
             values[k], where[k] = v, name
     for k, v in (scene_settings or {}).items():
         if k in values and values[k] != v:
+            tag = "string" if isinstance(v, str) else "integer"
             raise ConfigError(f"{scene_path or 'the scene XML'} states {k} = {v!r} but {where[k]} gives {values[k]!r}; "
-                              f"a setting is given in one place: remove the <{'integer' if k in ('max_order', 'grid_n', 'grid_k') else 'string'} "
-                              f"name=\"{k}\"> line from the XML, or drop the other.")
+                              f"a setting is given in one place: remove the <{tag} name=\"{k}\"> line from the XML, "
+                              f"or drop the other.")
         values[k] = v
     fixed = {}
     for key, flag in (("preset", args.preset), ("variant", args.variant)):
@@ -104,6 +105,7 @@ def main(argv=None) -> int:
     from glint_mi.model.gaussians import GaussianDataError
     from glint_mi.scene import SceneError, read_scene
     from glint_mi.runs import RunError, check_run_folder, undo_new_run
+    from glint_mi import VariantError
     from glint_mi.training.trainer import Trainer
 
     run = None
@@ -115,9 +117,9 @@ def main(argv=None) -> int:
                                                 ("--iterations", args.iterations is not None),
                                                 ("--seed", args.seed is not None), ("--set", args.set)) if given]
             if ignored:
-                raise RunError(f"--resume {args.resume} continues the run as its config.json says; {', '.join(ignored)} "
-                               f"would not be read: drop {'it' if len(ignored) == 1 else 'them'}, or start a new run "
-                               f"with --out to train with other settings.")
+                raise RunError(f"--resume {args.resume} continues the run as its config.json says; "
+                               f"{', '.join(ignored)} would not be read: drop {'it' if len(ignored) == 1 else 'them'}, "
+                               f"or start a new run with --out to train with other settings.")
             run = args.resume
             if not (run / "config.json").exists():
                 raise RunError(f"{run}/config.json: missing; --resume needs a run folder made by glint_mi.optimize.")
@@ -132,7 +134,7 @@ def main(argv=None) -> int:
             cfg = build_config(args, spec.settings, spec.path)
             with undo_new_run(run):  # a set-up that fails or is interrupted leaves no half-made run folder
                 trainer = Trainer(run, cfg, scene=spec)
-    except (ConfigError, SceneError, DatasetError, PriorError, GaussianDataError, RunError) as e:
+    except (ConfigError, SceneError, DatasetError, PriorError, GaussianDataError, RunError, VariantError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -38,9 +38,9 @@ def check_run_folder(run: Path) -> None:
     if run.is_dir() and not (run / "config.json").exists():
         other = sorted(p.name for p in run.iterdir() if p.name != LOCK_NAME)
         if other:
-            raise RunError(f"--out {run}: holds other files ({', '.join(other[:4])}{', ...' if len(other) > 4 else ''}"
-                           f"), not a run; a run writes config.json, model/, renders/ ... into its folder: choose a new "
-                           f"or empty folder.")
+            listed = ", ".join(other[:4]) + (", ..." if len(other) > 4 else "")
+            raise RunError(f"--out {run}: holds other files ({listed}), not a run; a run writes config.json, "
+                           f"model/, renders/ ... into its folder: choose a new or empty folder.")
     parent = run if run.exists() else next((p for p in run.parents if p.exists()), Path("."))
     if not os.access(parent, os.W_OK):
         raise RunError(f"--out {run}: {parent} is not writable; choose another --out.")
@@ -79,8 +79,9 @@ def check_writable(folder: Path) -> None:
         if lock.exists():
             open(lock, "a").close()
     except OSError as e:
-        raise RunError(f"{folder}: not writable ({e.strerror}); training and evaluation write into the run folder: "
-                       f"make it writable (chmod -R u+w {folder}) or copy the run elsewhere and use the copy.") from None
+        raise RunError(f"{folder}: not writable ({e.strerror}); training and evaluation write into the run "
+                       f"folder: make it writable (chmod -R u+w {folder}) or copy the run elsewhere and use the "
+                       f"copy.") from None
 
 
 def hold_run(run: Path):

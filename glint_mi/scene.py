@@ -210,9 +210,9 @@ def read_scene(path: str | Path) -> OptimScene:
         if init != "none":
             sets[role] = SetSpec(role, init, None)
     if len(set(kernels.values())) > 1:
-        raise SceneError(f"{path}: the shapes give different kernels ({', '.join(f'{r}: {k}' for r, k in kernels.items())}"
-                         f"); every set of a run has one kernel (the config's 'kernel'): give it once, the same on "
-                         f"each shape, or leave it out.")
+        given = ", ".join(f"{r}: {k}" for r, k in kernels.items())
+        raise SceneError(f"{path}: the shapes give different kernels ({given}); every set of a run has one kernel "
+                         f"(the config's 'kernel'): give it once, the same on each shape, or leave it out.")
     if kernels:
         settings["kernel"] = next(iter(kernels.values()))
     if "interface" not in sets:

@@ -90,3 +90,10 @@ def test_readme_python_tour_runs():
             exec(compile(code, "README.md", "exec"), {})
     finally:
         os.chdir(cwd)
+
+
+def test_readme_stays_short():
+    """The README is for users: what it does today, how well, how to reproduce, in at most 3,000 words (results
+    tables beyond the headline, history and decisions go in docs/)."""
+    words = len((ROOT / "README.md").read_text().split())
+    assert words <= 3000, f"README.md has {words} words (at most 3,000): move results and history to docs/"

@@ -453,3 +453,20 @@ def test_ctrl_c_early_in_evaluate_is_one_line(trained, tmp_path):
         if (run / "metrics.json").read_text() != before:  # it finished first (SIGINT may end the process's exit)
             consistent(run)
         assert not (run / "evaluation_partial").exists() or p.returncode != 0
+
+
+def test_threads_setting_reaches_drjit(xml, tmp_path):
+    """`--set threads=1` is how a CLI run (and its --resume) becomes reproducible bit for bit on the LLVM backend
+    (tests/test_train.py checks resume exactness on one thread); before, only a script could set Dr.Jit's threads."""
+    import drjit as dr
+
+    from glint_mi.training.trainer import Trainer
+
+    threads = dr.thread_count()
+    try:
+        Trainer(tmp_path / "run", TrainConfig.for_preset("tiny", threads=1), scene=read_scene(xml), log=lambda *a: None)
+        assert dr.thread_count() == 1
+    finally:
+        dr.set_thread_count(threads)
+    with pytest.raises(ConfigError, match=r"'threads' = -1: must be >= 0"):
+        TrainConfig.for_preset("tiny", threads=-1)

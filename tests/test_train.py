@@ -560,9 +560,12 @@ def test_epochs_budget_sets_iterations(room, tmp_path):
                                                       for v in load_dataset(room).train_views) / 256)
     args = argparse.Namespace(config=None, iterations=50, seed=None, set=["epochs=4"], preset="quick", variant=None)
     assert build_config(args).epochs == 4.0  # --set wins over the flag's reset
-    # the scene XML's components apply unless the method fixes them (3dgs is the interface alone)
+    # the scene XML's components apply; a method that fixes another value is refused, naming both (tests/
+    # test_refusals.py: before, the method's silently won)
     m = argparse.Namespace(**{**vars(args), "method": "3dgs"})
-    assert build_config(m, {"components": "auto"}).components == "interface"
+    assert build_config(m).components == "interface"
+    with pytest.raises(ConfigError, match=r"states components = 'auto' but method 3dgs gives 'interface'"):
+        build_config(m, {"components": "auto"})
     assert build_config(argparse.Namespace(**{**vars(args), "method": "glint"}), {"components": "all"}).components \
         == "all"
     args.set = []

@@ -85,6 +85,12 @@ class Trainer:
 
         glint_mi.set_variant()  # $GLINT_VARIANT (e.g. cuda_ad_rgb) or llvm_ad_rgb
         self.run_dir, self.cfg, self.log = Path(run_dir), cfg, log
+        if cfg.threads > 0:
+            import drjit as dr
+            import mitsuba as mi
+
+            if mi.variant().startswith("llvm"):  # a GPU's atomics have no fixed order to restore
+                dr.set_thread_count(cfg.threads)
         self.scene_spec = scene
         self.ds = dataset
         self.it = 0
