@@ -30,7 +30,7 @@ import glint_mi  # noqa: E402
 glint_mi.set_variant()
 
 from glint_mi.evaluate import evaluate, load_model, load_run  # noqa: E402
-from glint_mi.evaluation.tradeoff import pareto  # noqa: E402
+from glint_mi.tradeoff import pareto  # noqa: E402
 from glint_mi.evaluate import eval_options  # noqa: E402
 
 # (name, max_hits or None for the run's own, components, traversal)

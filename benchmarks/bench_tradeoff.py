@@ -36,7 +36,7 @@ import glint_mi  # noqa: E402
 glint_mi.set_variant()
 
 from glint_mi.scene import scene_xml  # noqa: E402
-from glint_mi.evaluation.tradeoff import (GRID, NO_GLASS, as_number, mesh_reference_trade, pareto,  # noqa: E402
+from glint_mi.tradeoff import (GRID, NO_GLASS, as_number, mesh_reference_trade, pareto,  # noqa: E402
                                           run_variants, summarise)
 
 NO_GLASS_GROUP = "components (no glass)"  # another room: its own Pareto front

@@ -242,7 +242,7 @@ def view_rays(view, width: int, height: int):
     """Rays through the pixel centres of ``view``'s camera at ``width`` x ``height`` (intrinsics scaled)."""
     import dataclasses
 
-    from glint_mi.training.batch import pixel_rays
+    from glint_mi.data.rays import pixel_rays
 
     K = view.K.copy()
     K[0] *= width / view.width

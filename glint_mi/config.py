@@ -15,7 +15,7 @@ import json
 import math
 from pathlib import Path
 
-from glint_mi import conventions as cv
+import glint_mi.conventions as cv
 
 PAPER_ITERS = 60_000.0
 # the weighted terms of the objective (glint_mi.training.losses.batch_objective), each switched by its w_<name> weight

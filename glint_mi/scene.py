@@ -275,8 +275,8 @@ def sfm_points(ds: Dataset, log=print) -> tuple[np.ndarray, np.ndarray, dict]:
     report); the report says where the points came from, or in one line why there are none."""
     from glint_mi.data.images import image_size
     from glint_mi.data.undistort import cache_root, digest, file_key
-    from glint_mi.dataset.cameras import Camera, write_colmap_text
-    from glint_mi.dataset.sfm import triangulate_known_poses
+    from glint_mi.data.cameras import Camera, write_colmap_text
+    from glint_mi.data.sfm import triangulate_known_poses
 
     none = (np.zeros((0, 3)), np.zeros((0, 3), np.uint8))
     if ds.points is not None and len(ds.points):
@@ -359,7 +359,7 @@ def grid_points(lo, hi, n: int, k: int, rng: np.random.Generator) -> np.ndarray:
 def ray_points(ds: Dataset, n: int, extent: float, rng: np.random.Generator, depth_range=None):
     """``n`` points on random training-pixel rays at random depths (``depth_range``, default [0.2, 4] x extent),
     with the pixel's colour: a random initialisation restricted to what the cameras see (no SfM points)."""
-    from glint_mi.training.batch import pixel_rays
+    from glint_mi.data.rays import pixel_rays
 
     views = ds.train_views or ds.views
     vi = rng.integers(0, len(views), n)

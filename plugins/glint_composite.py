@@ -6,7 +6,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from glint_mi import native
+import glint_mi.native as native
 
 from . import glint_gaussians
 

@@ -42,38 +42,17 @@ kernel's own standard deviations live in the ``kernel_scales`` attribute, which 
 """
 from __future__ import annotations
 
-import dataclasses
-from pathlib import Path
-
 import mitsuba as mi
 import numpy as np
 
-from glint_mi import conventions as cv
+import glint_mi.conventions as cv
 from glint_mi.model.gaussians import SHELL_EXTENT, GaussianDataError, GaussianSet
+from glint_mi.model.shapes import (PARAM_KEYS, SET_INFO, SetInfo, info, make_shape, pack, save_ply,
+                                   to_gaussian_set)
 
-
-@dataclasses.dataclass
-class SetInfo:
-    role: str | None
-    kernel: str
-    empty: bool
-    source: str
-    min_shell_ratio: float
-    opacity_shells: bool
-    extent: float
-    shape: object = dataclasses.field(repr=False, default=None)  # keeps id(shape) from being reused
-
-
-SET_INFO: dict[int, SetInfo] = {}
-
-
-def info(shape) -> SetInfo:
-    """Metadata of a shape made by this factory; raises for any other shape."""
-    try:
-        return SET_INFO[id(shape)]
-    except KeyError:
-        raise ValueError(f"shape '{shape.id()}' is not a glint_gaussians shape (declare it with "
-                         f"type=\"glint_gaussians\")") from None
+# the shape functions live in glint_mi.model.shapes (below the plugins); here too, where scripts import them
+__all__ = ["PARAM_KEYS", "SET_INFO", "SetInfo", "info", "make_shape", "pack", "save_ply", "to_gaussian_set",
+           "gaussian_set_from_props", "register"]
 
 
 def _tensor(props, name, source, width=None):
@@ -135,52 +114,6 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
         return GaussianSet.empty(0 if sh is None else int(round(sh.shape[1] ** 0.5)) - 1)
     return GaussianSet.from_activated(centers, scales, quats, opacities=column("opacities"), sh=sh,
                                       specular=column("specular"), transparency=column("transparency"))
-
-
-def make_shape(gset: GaussianSet, kernel: str = "surfel", role: str | None = None, shape_id: str = "",
-               extent: float = SHELL_EXTENT, min_shell_ratio: float = 0.3, opacity_shells: bool = True,
-               source: str = "glint_gaussians"):
-    """Instantiate the ``ellipsoids`` shape for a GaussianSet and register its metadata."""
-    if kernel not in cv.KERNELS:
-        raise ValueError(f"{source}: unknown kernel '{kernel}'; use one of {cv.KERNELS}.")
-    if role is not None and role not in cv.ROLES:
-        raise ValueError(f"{source}: unknown role '{role}'; use one of {cv.ROLES}.")
-    empty = len(gset) == 0
-    if empty:  # Mitsuba's ellipsoids cannot hold 0 primitives: one invisible placeholder, skipped by the integrator
-        gset = GaussianSet.from_activated(np.zeros((1, 3)), 1e-3, opacities=1e-6, sh_degree=gset.sh_degree)
-    arrays = gset.to_mitsuba(kernel, min_shell_ratio, opacity_shells, float(extent))
-    desc = {"type": "ellipsoids", "extent": float(extent)}
-    if shape_id:
-        desc["id"] = shape_id
-    desc.update({k: mi.TensorXf(v) for k, v in arrays.items()})
-    shape = mi.load_dict(desc)
-    SET_INFO[id(shape)] = SetInfo(role, kernel, empty, source, min_shell_ratio, opacity_shells, float(extent), shape)
-    return shape
-
-
-def pack(shape, gset: GaussianSet) -> dict[str, np.ndarray]:
-    """``gset`` as the arrays of ``shape``'s parameters, packed as the shape was made (kernel, shell ratio,
-    opacity shells, extent): what to send through ``mi.traverse`` when a set changes."""
-    meta = info(shape)
-    return gset.to_mitsuba(meta.kernel, meta.min_shell_ratio, meta.opacity_shells, meta.extent)
-
-
-PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
-
-
-def to_gaussian_set(shape) -> GaussianSet:
-    """The current parameters of a glint_gaussians shape (e.g. after optimisation) as a raw GaussianSet."""
-    meta = info(shape)
-    if meta.empty:
-        return GaussianSet.empty()
-    params = mi.traverse(shape)
-    arrays = {k: np.array(params[k], dtype=np.float64).ravel() for k in PARAM_KEYS if k in params}
-    return GaussianSet.from_mitsuba(arrays, kernel=meta.kernel)
-
-
-def save_ply(shape, path) -> Path:
-    """Write a shape's current Gaussians as a standard 3DGS .ply with ``specular``/``transparency`` (atomic)."""
-    return to_gaussian_set(shape).save_ply(path)
 
 
 PROPERTIES = ("filename, data, centers, scales, quaternions, opacities, sh_coeffs, specular, transparency, role, "

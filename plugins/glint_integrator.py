@@ -113,8 +113,9 @@ import contextlib
 import drjit as dr
 import mitsuba as mi
 
-from glint_mi import conventions as cv
-from glint_mi import native
+import glint_mi.conventions as cv
+import glint_mi.native as native
+from glint_mi.model.render import AOV_GROUPS, from_pinhole
 
 from . import glint_gaussians
 from .glint_composite import Composite, GaussianSetRef, _widen  # noqa: F401  (re-exported)
@@ -122,17 +123,6 @@ from .glint_env import DirectionalGrid, reflect, refgs_shade
 from .glint_march import KBUFFER_BYTES, GaussianPasses  # noqa: F401
 from .glint_mesh import first_surface, is_glass, trace_meshes  # noqa: F401
 
-AOV_GROUPS = {
-    "depth": ["depth"],
-    "normal": ["nx", "ny", "nz"],
-    "transparency": ["t"],
-    "interface": ["cI.R", "cI.G", "cI.B"],
-    "reflection": ["cR.R", "cR.G", "cR.B"],
-    "transmission": ["cT.R", "cT.G", "cT.B"],
-    "alpha": ["A"],
-    "weights": ["kd", "ks", "kt"],
-    "trans_direct": ["cTd.R", "cTd.G", "cTd.B", "depthT", "nTx", "nTy", "nTz", "AT"],
-}
 DEFAULT_AOVS = "depth,normal,transparency,interface,reflection,transmission,alpha"
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1.0 / 255.0, 0.99, 1e-4
 BLENDS = ("fresnel", "envgs", "alpha", "refgs")
@@ -582,15 +572,6 @@ class GlintIntegrator(GaussianPasses):
             self.march(intf, o, d, active, total=I, adjoint=gI, hit_list=lI)
         if trans and "trans_direct" in adjoints:
             self.march(trans, o, d, active, total=D, adjoint=gD, hit_list=lD)
-
-
-def from_pinhole(sensor, ray):
-    """Perspective sensors start rays on the near plane (near_clip away); move the origins back to the pinhole so
-    that hit distances, hence depths, are measured from the camera centre (protocol: planar depth from the camera)."""
-    if sensor.class_name() == "PerspectiveCamera":
-        ray = mi.Ray3f(ray)
-        ray.o = mi.Point3f(sensor.world_transform().translation())
-    return ray
 
 
 def register() -> None:

@@ -10,7 +10,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from glint_mi import conventions as cv
+import glint_mi.conventions as cv
 
 from .glint_composite import Composite, GaussianSetRef, _ray_epsilon, _widen
 

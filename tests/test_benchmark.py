@@ -155,7 +155,7 @@ def test_table_shows_the_csv_numbers(tmp_path):
 def test_mesh_reference_trade_error_falls_with_spp():
     """path's error against the high-spp reference must fall with spp (a warm-up render once left every timed render
     at 1 spp), and time must grow with it."""
-    from glint_mi.evaluation.tradeoff import mesh_reference_trade
+    from glint_mi.tradeoff import mesh_reference_trade
 
     rows = mesh_reference_trade(spps=(1, 64), ref_spp=256, width=24, height=18, depths=(64,))
     path = {r["spp"]: r for r in rows if r["renderer"] == "path"}
@@ -165,7 +165,7 @@ def test_mesh_reference_trade_error_falls_with_spp():
 
 
 def test_pareto_front():
-    from glint_mi.evaluation.tradeoff import pareto
+    from glint_mi.tradeoff import pareto
     rows = [{"train_s": 1, "psnr": 20}, {"train_s": 2, "psnr": 25}, {"train_s": 3, "psnr": 24},
             {"train_s": 2, "psnr": 25}, {"train_s": 0.5, "psnr": 10}]
     assert pareto(rows) == [True, True, False, True, True]
@@ -195,7 +195,7 @@ def test_tradeoff_script_tiny(tmp_path):
 def test_tradeoff_summary_pairs_each_variant_with_its_own_base():
     """The change against the base is taken per (room, seed) - the room-to-room spread cancels - and a variant on a
     room without a base run (the glass-free twin) gets no change."""
-    from glint_mi.evaluation.tradeoff import summarise
+    from glint_mi.tradeoff import summarise
 
     rows = [{"group": "base", "variant": "base", "room": "a", "seed": 0, "psnr": 30.0, "train_s": 100.0},
             {"group": "base", "variant": "base", "room": "b", "seed": 0, "psnr": 20.0, "train_s": 50.0},
@@ -391,7 +391,7 @@ def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
 def test_trade_off_variants_resume_finished_and_interrupted_runs(room, tmp_path):
     """evaluation.tradeoff.run_variants: a finished variant is read back, not trained; one whose evaluation was killed
     (metrics.json marked interrupted) is evaluated again from its finished checkpoint, not trained again."""
-    from glint_mi.evaluation.tradeoff import run_variants
+    from glint_mi.tradeoff import run_variants
 
     xml = room.parent / "scene.xml"
     kw = dict(iterations=4, patches=4, log_every=1000, eval_every=0)
@@ -436,7 +436,7 @@ def test_cue_accuracy_counts_the_cue_against_the_glass(room, rng):
     import json
     import sys
 
-    from glint_mi.training.batch import pixel_rays
+    from glint_mi.data.rays import pixel_rays
 
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
     from cue_accuracy import cue_accuracy

@@ -252,7 +252,7 @@ def test_room_without_glass_is_the_same_room():
 @needs_pycolmap
 def test_sfm_points_lie_on_surfaces(tmp_path):
     """Known-pose triangulation (pycolmap SIFT + matching) gives points on the scene's surfaces."""
-    from glint_mi.dataset.cameras import trajectory
+    from glint_mi.data.cameras import trajectory
     from glint_mi.dataset.generate import sfm_points, write_scene_files
     room = build_room(2)
     cams = trajectory(room, 10, 96, 54, 2)
@@ -262,7 +262,7 @@ def test_sfm_points_lie_on_surfaces(tmp_path):
     # the tracks: each observation is where its point projects in that view (dataset pixels), and they reach
     # the COLMAP files and read back as the same observations
     from glint_mi.data import read_observations
-    from glint_mi.dataset.cameras import write_colmap_text
+    from glint_mi.data.cameras import write_colmap_text
     n_obs = 0
     for c in cams:
         xy, rows = tracks[c.name]

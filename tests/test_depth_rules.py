@@ -1,4 +1,4 @@
-"""The depth each method reports (glint_mi.training.depth_rules): 2DGS's median depth and TSGS's first-surface depth.
+"""The depth each method reports (glint_mi.evaluation.depth_rules): 2DGS's median depth and TSGS's first-surface depth.
 
 Hand-made hit lists check TSGS's rule case by case (glass in front of a wall, two candidate windows, an opaque-mask
 pixel, background); on a rendered stack of surfels the numpy median equals the integrator's own median composite, and
@@ -11,7 +11,7 @@ import drjit as dr
 import mitsuba as mi
 
 from conftest import make_integrator, rays
-from glint_mi.training import depth_rules as R
+from glint_mi.evaluation import depth_rules as R
 from glint_mi.model.gaussians import GaussianSet
 
 
@@ -78,7 +78,7 @@ def test_median_of_hit_lists_equals_the_integrators_median(rng):
 def _interface_transmittance(integ, view, pixels):
     """For the selected pixels of ``view``: the interface pass's running transmittance [n, K + 1] in float64, from
     the pass's hit list (1 before the first hit), and the rendered alpha."""
-    from glint_mi.evaluate import pixel_rays
+    from glint_mi.data.rays import pixel_rays
     from glint_mi.model.render import floats
 
     dd = pixel_rays(view).astype(np.float32)[pixels.reshape(-1)]

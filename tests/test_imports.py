@@ -83,7 +83,8 @@ def test_readers_do_not_import_the_generator():
 # The package's top level: the commands (python -m glint_mi.X) and what every part shares. A library module goes in
 # the folder of what it is for (data, dataset, model, training, evaluation, native).
 TOP_LEVEL = {"__init__", "_llvm", "setup_llvm", "benchmark", "crosscheck", "demo", "evaluate", "optimize", "scene",
-             "config", "methods", "conventions", "machine", "runs"}
+             "config", "methods", "conventions", "machine", "runs",
+             "tradeoff"}  # a study that trains and evaluates runs, above training and evaluation
 FOLDERS = {"data", "dataset", "model", "training", "evaluation", "native"}
 
 
@@ -96,9 +97,76 @@ def test_layout_shows_the_architecture():
         assert ast.get_docstring(ast.parse((PKG / folder / "__init__.py").read_text())), folder
     graph = import_graph()
     # the folders depend downwards: the readers import no model, training or evaluation; the metrics, analyses and
-    # plots import no training (the trade-off study trains its runs, so it may)
+    # plots import no training (the trade-off study, which trains its runs, is a top-level module)
     readers = [m for m in graph if m == "glint_mi.data" or m.startswith("glint_mi.data.")]
     assert not {d for m in readers for d in graph[m]
                 if d.startswith(("glint_mi.model", "glint_mi.training", "glint_mi.evaluation"))}
-    leaves = [m for m in graph if m.startswith("glint_mi.evaluation.") and not m.endswith(".tradeoff")]
+    leaves = [m for m in graph if m.startswith("glint_mi.evaluation")]
     assert not {d for m in leaves for d in graph[m] if d.startswith("glint_mi.training")}
+
+
+PLUGINS = PKG.parent / "plugins"
+
+
+def _imports_of(path: Path) -> set[str]:
+    """Every module name a file imports (both forms, at any depth; ``from a import b`` gives a and a.b)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            out |= {node.module} | {f"{node.module}.{a.name}" for a in node.names}
+        elif isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+    return out
+
+
+def package_graph() -> dict[str, set[str]]:
+    """The import graph of the packages: glint_mi's folders (data, dataset, model, training, evaluation, native)
+    each one node, each top-level module its own node (glint_mi is its __init__), and plugins/ one node."""
+    graph = import_graph()
+    folders = {p.name for p in PKG.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+
+    def node(mod: str) -> str:
+        parts = mod.split(".")
+        if parts[0] == "glint_mi_plugins":
+            return "plugins"
+        return ".".join(parts[:2]) if len(parts) > 1 and parts[1] in folders else mod
+
+    out: dict[str, set[str]] = {}
+    for mod, deps in graph.items():
+        out.setdefault(node(mod), set()).update(node(d) for d in deps)
+    for p in PKG.rglob("*.py"):  # glint_mi -> plugins
+        parts = p.relative_to(PKG.parent).with_suffix("").parts
+        mod = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[node(mod)].update("plugins" for n in _imports_of(p) if n.startswith("glint_mi_plugins"))
+    for p in PLUGINS.glob("*.py"):  # plugins -> glint_mi
+        out.setdefault("plugins", set()).update(node(n) for n in _imports_of(p) if n in graph)
+    for k in out:
+        out[k].discard(k)
+    return out
+
+
+def test_no_cycle_between_packages():
+    """A package's modules may import each other; packages depend one way (issue 64: training <-> evaluate, scene,
+    evaluation, dataset and model <-> plugins were cycles)."""
+    graph = package_graph()
+    assert {"plugins", "glint_mi.training", "glint_mi.model"} <= set(graph) and "plugins" in graph["glint_mi.training"]
+    assert cycles(graph) == []
+
+
+def test_real_captures_do_not_import_the_room_generator():
+    """What reads a capture and trains on it (scene.py, data/, model/, training/) imports nothing from dataset/, the
+    procedural rooms: cameras, SfM triangulation and the priors' record live in data/."""
+    graph = import_graph()
+    users = [m for m in graph if m == "glint_mi.scene" or m.startswith(("glint_mi.data", "glint_mi.model",
+                                                                       "glint_mi.training"))
+             and not m.startswith("glint_mi.dataset")]
+    assert len(users) > 15
+    assert sorted((m, d) for m in users for d in graph[m] if d.startswith("glint_mi.dataset")) == []
+
+
+def test_the_trainer_imports_few_project_modules():
+    """The trainer runs the loop; assembling a run is the builder's (training/builder.py)."""
+    deps = {d for d in import_graph()["glint_mi.training.trainer"] if d != "glint_mi"}
+    deps |= {n.rsplit(".", 1)[0] if n.count(".") > 1 else n for n in _imports_of(PKG / "training" / "trainer.py")
+             if n.startswith("glint_mi_plugins.")}
+    assert len(deps) <= 12, sorted(deps)

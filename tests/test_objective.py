@@ -211,7 +211,7 @@ def test_whole_image_depth_fit(tmp_path, disparity):
 
     from glint_mi.training.batch import RayBank
     from glint_mi.data import load_dataset
-    from glint_mi.dataset.cameras import Camera, write_transforms_json
+    from glint_mi.data.cameras import Camera, write_transforms_json
 
     folder = tmp_path / "cap"
     (folder / "images").mkdir(parents=True)

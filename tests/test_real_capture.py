@@ -142,7 +142,7 @@ def test_missing_and_broken_frames_are_named(tmp_path):
 def test_images_k_folder_and_downscale(tmp_path):
     from PIL import Image
 
-    from glint_mi.dataset.cameras import write_transforms_json, Camera
+    from glint_mi.data.cameras import write_transforms_json, Camera
 
     folder = tmp_path / "pin"
     (folder / "images").mkdir(parents=True)
@@ -172,7 +172,7 @@ def test_estimator_priors_conventions(tmp_path):
 
     from glint_mi.training.batch import RayBank
     from glint_mi.data.priors import PriorError, load_prior
-    from glint_mi.dataset.cameras import Camera, write_transforms_json
+    from glint_mi.data.cameras import Camera, write_transforms_json
 
     folder = tmp_path / "cap"
     (folder / "images").mkdir(parents=True)
@@ -242,7 +242,7 @@ def test_sfm_failure_is_one_line_in_the_report(tmp_path):
     from PIL import Image
 
     from glint_mi.config import TrainConfig
-    from glint_mi.dataset.cameras import Camera, look_at, write_transforms_json
+    from glint_mi.data.cameras import Camera, look_at, write_transforms_json
     from glint_mi.scene import read_scene, scene_xml
     from glint_mi.training.trainer import Trainer
 
@@ -270,8 +270,8 @@ def test_sfm_failure_is_one_line_in_the_report(tmp_path):
 
 
 def test_evaluation_keeps_finished_views_on_ctrl_c(tmp_path, monkeypatch):
-    from glint_mi import evaluate as E
-    from glint_mi.dataset.cameras import Camera, write_transforms_json
+    from glint_mi.evaluation import renders as E
+    from glint_mi.data.cameras import Camera, write_transforms_json
     from PIL import Image
 
     folder = tmp_path / "cap"

@@ -397,7 +397,7 @@ def test_cli_scene_optimize_evaluate(room, tmp_path):
     assert bad.returncode == 2 and "max_hits" in bad.stderr
     # an interrupted evaluation keeps the last complete one (metrics.json, per_view/, renders/) as it was and is
     # not read as done; a complete one moves into place
-    import glint_mi.evaluate as E
+    import glint_mi.evaluation.renders as E  # the library behind the command
     from glint_mi.runs import finished_metrics
 
     integ, ds, _, _ = E.load_run(run)
@@ -1066,8 +1066,8 @@ def test_sfm_points_of_a_run_that_lost_the_cache_race_are_the_cached_ones(room, 
     loses uses the winner's cached points, so every run starts from one point cloud (SIFT matching is multi-threaded
     and two triangulations differ by a few points: the fox gave 15,194 and 15,224)."""
     import glint_mi.data.images as images
-    import glint_mi.dataset.sfm as sfm
-    from glint_mi.dataset.cameras import Camera, write_colmap_text
+    import glint_mi.data.sfm as sfm
+    from glint_mi.data.cameras import Camera, write_colmap_text
     from glint_mi.scene import sfm_points
 
     monkeypatch.setenv("GLINT_CACHE", str(tmp_path / "cache"))

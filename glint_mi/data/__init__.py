@@ -7,6 +7,10 @@ request), every image is decoded up front (errors name the file), distorted came
 cache with COLMAP's undistorter (:mod:`.undistort`), ``downscale`` reduces every view by an area filter (or reads
 ``images_<k>/`` when the capture ships one), and the split is decided (``split.json``, the file's own split, or
 every 8th view from 0). Errors are :class:`DatasetError` naming the file, the field and the fix.
+
+What every capture shares lives here too: cameras (:mod:`.cameras`: intrinsics, poses, COLMAP / transforms.json
+writers, Mitsuba sensors), rays through pixels (:mod:`.rays`) and SfM triangulation from known poses (:mod:`.sfm`).
+The room generator (glint_mi.dataset) builds on them; nothing here imports it.
 """
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from glint_mi.conventions import linear_to_srgb
 from glint_mi.data.exr import read_gt_exr, write_gt_exr
-from glint_mi.dataset.cameras import Camera, trajectory, write_colmap_text, write_transforms_json
+from glint_mi.data.cameras import Camera, sensor_xml, trajectory, write_colmap_text, write_transforms_json
 from glint_mi.dataset.room import RoomScene, build_room
 
 PRESETS = {  # protocol.md size presets; spp measured so that ground-truth noise stays below the metrics' resolution
@@ -61,17 +61,6 @@ def _material_xml(part, tex_rel, exposure: float = 1.0) -> str:
                 f'<string name="filename" value="{tex_rel[m.texture]}"/></texture></bsdf></bsdf>')
     return (f'<bsdf type="twosided"><bsdf type="diffuse"><rgb name="reflectance" '
             f'value="{m.rgb[0]}, {m.rgb[1]}, {m.rgb[2]}"/></bsdf></bsdf>')
-
-
-def sensor_xml(cam: Camera, spp: int) -> str:
-    mat = " ".join(f"{v:.10g}" for v in cam.c2w.ravel())
-    return (f'    <sensor type="perspective" id="{cam.name}">\n'
-            f'        <float name="fov" value="{cam.fov_x_deg:.10g}"/><string name="fov_axis" value="x"/>\n'
-            f'        <transform name="to_world"><matrix value="{mat}"/></transform>\n'
-            f'        <film type="hdrfilm"><integer name="width" value="{cam.width}"/>'
-            f'<integer name="height" value="{cam.height}"/><rfilter type="box"/></film>\n'
-            f'        <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler>\n'
-            f'    </sensor>\n')
 
 
 def write_assets(folder: Path, room: RoomScene) -> dict[str, str]:
@@ -248,7 +237,7 @@ def sfm_points(scene, folder: Path, cams: list[Camera], mode: str, width: int = 
 
     from glint_mi.data import View
 
-    from glint_mi.dataset.sfm import full_sfm_pose_error
+    from glint_mi.data.sfm import full_sfm_pose_error
 
     scale = max(1, int(np.ceil(width / cams[0].width)))
     fast = mi.load_dict({"type": "path", "max_depth": 6})  # feature matching needs texture, not exact transport
@@ -273,7 +262,7 @@ def sfm_points(scene, folder: Path, cams: list[Camera], mode: str, width: int = 
 def _triangulate(folder: Path, cams: list[Camera], scale: float):
     """Known-pose triangulation on ``folder``/sfm/images (``scale`` x the cameras' resolution); tracks in the
     cameras' own pixels."""
-    from glint_mi.dataset.sfm import triangulate_known_poses
+    from glint_mi.data.sfm import triangulate_known_poses
 
     big = [c.scaled(scale) for c in cams]
     xyz, rgb, stats, tracks = triangulate_known_poses([folder / "sfm" / "images" / f"{c.name}.png" for c in big], big)

@@ -14,7 +14,7 @@ def fresnel_weights_vs_angle(angles_deg, beta: float = 0.0, tau: float = 0.5, io
     import mitsuba as mi
 
     from glint_mi.model.gaussians import GaussianSet
-    from glint_mi_plugins.glint_gaussians import make_shape
+    from glint_mi.model.shapes import make_shape
 
     rng = np.random.default_rng(0)
     n = 2000

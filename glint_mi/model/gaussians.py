@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glint_mi import conventions as cv
+import glint_mi.conventions as cv
 
 PLY_BASE = ("x", "y", "z", "nx", "ny", "nz")
 # initial values of the paper (glint-method.md section 1), used wherever a value is not given

@@ -16,6 +16,20 @@ def aligned(a: np.ndarray, dtype=np.float32) -> np.ndarray:
     return out
 
 
+# the glint integrator's AOV groups and their channels, in the order it writes them
+AOV_GROUPS = {
+    "depth": ["depth"],
+    "normal": ["nx", "ny", "nz"],
+    "transparency": ["t"],
+    "interface": ["cI.R", "cI.G", "cI.B"],
+    "reflection": ["cR.R", "cR.G", "cR.B"],
+    "transmission": ["cT.R", "cT.G", "cT.B"],
+    "alpha": ["A"],
+    "weights": ["kd", "ks", "kt"],
+    "trans_direct": ["cTd.R", "cTd.G", "cTd.B", "depthT", "nTx", "nTy", "nTz", "AT"],
+}
+
+
 def floats(a: np.ndarray):
     """numpy [M] -> mi.Float, or [M, 3] -> a list of three mi.Float columns (aligned, see :func:`aligned`)."""
     import mitsuba as mi
@@ -28,8 +42,6 @@ def floats(a: np.ndarray):
 
 def aov_layout(integrator) -> dict[str, slice]:
     """Channel slices of a ``mi.render`` tensor made with ``integrator``: rgb first, then the AOV groups."""
-    from glint_mi_plugins.glint_integrator import AOV_GROUPS
-
     layout, start = {"rgb": slice(0, 3)}, 3
     for g in integrator.aov_groups:
         n = len(AOV_GROUPS[g])
@@ -57,8 +69,6 @@ def camera_rays(sensor, pixels: np.ndarray | None = None):
     """
     import mitsuba as mi
 
-    from glint_mi_plugins.glint_integrator import from_pinhole
-
     size = np.array(sensor.film().crop_size(), dtype=np.float64)
     if pixels is None:
         w, h = (int(x) for x in size)
@@ -67,3 +77,14 @@ def camera_rays(sensor, pixels: np.ndarray | None = None):
     ray, _ = sensor.sample_ray(0.0, 0.0, mi.Point2f(mi.Float(uv[:, 0]), mi.Float(uv[:, 1])), mi.Point2f(0.5))
     forward = mi.Vector3f(sensor.world_transform() @ mi.Vector3f(0, 0, 1))
     return from_pinhole(sensor, mi.Ray3f(ray)), forward
+
+
+def from_pinhole(sensor, ray):
+    """Perspective sensors start rays on the near plane (near_clip away); move the origins back to the pinhole so
+    that hit distances, hence depths, are measured from the camera centre (protocol: planar depth from the camera)."""
+    import mitsuba as mi
+
+    if sensor.class_name() == "PerspectiveCamera":
+        ray = mi.Ray3f(ray)
+        ray.o = mi.Point3f(sensor.world_transform().translation())
+    return ray

@@ -13,27 +13,9 @@ import functools
 import numpy as np
 
 from glint_mi.data import View
-from glint_mi.conventions import MI_TO_COLMAP
+
 from glint_mi.data.priors import load_prior, prior_conventions
-
-
-def pixel_rays(view: View, pixels: np.ndarray | None = None):
-    """World ray directions [M,3] (unit) through pixel centres ``pixels`` [M,2] (x, y), default all (row-major)."""
-    if pixels is None:
-        ys, xs = np.mgrid[0:view.height, 0:view.width]
-        pixels = np.stack([xs.ravel(), ys.ravel()], -1)
-    K = view.K
-    x = (pixels[:, 0] + 0.5 - K[0, 2]) / K[0, 0]
-    y = (pixels[:, 1] + 0.5 - K[1, 2]) / K[1, 1]
-    d_cv = np.stack([x, y, np.ones_like(x)], -1)
-    R_cv = view.c2w[:3, :3] @ MI_TO_COLMAP  # OpenCV camera axes in world coordinates
-    d = d_cv @ R_cv.T
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
-
-
-def camera_axes_cv(view: View) -> np.ndarray:
-    """[3,3] columns = OpenCV camera x (right), y (down), z (forward) axes in world coordinates."""
-    return view.c2w[:3, :3] @ MI_TO_COLMAP
+from glint_mi.data.rays import camera_axes_cv, pixel_rays  # noqa: F401 (pixel_rays: the trainer's)
 
 
 @dataclasses.dataclass

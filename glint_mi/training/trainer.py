@@ -30,7 +30,7 @@ from glint_mi.training.components import ComponentsPolicy
 from glint_mi.training.inputs import training_inputs
 from glint_mi.config import LOSS_NAMES, TrainConfig
 from glint_mi.data import Dataset, DatasetError, load_dataset
-from glint_mi.evaluate import eval_options
+from glint_mi.evaluation.renders import eval_options
 from glint_mi.model.examples import gaussian_scene_dict
 from glint_mi.model.gaussians import GaussianSet
 from glint_mi.model.files import TRAINING_AOVS, integrator_props, model_xml, shape_props
@@ -119,7 +119,7 @@ class Trainer:
                                     getattr(self, "_resume_affine", None))  # set by _load_checkpoint only
         if not resume:
             self._glass_cue_check()
-        from glint_mi.dataset.priors import priors_are_derived
+        from glint_mi.data.priors import priors_are_derived
 
         self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
         self._build()
@@ -241,7 +241,7 @@ class Trainer:
         """Send the sets' current values (and sizes) to the renderer; a `data` change rebuilds that set's BVH, so
         only ``roles`` (default all) are sent, packed as each shape was made (its opacity shells included)."""
         import drjit as dr
-        from glint_mi_plugins.glint_gaussians import info, pack
+        from glint_mi.model.shapes import info, pack
 
         for role, gs in self.sets.items():
             if roles is not None and role not in roles:
@@ -612,7 +612,7 @@ class Trainer:
         """Test-view metrics of the current model (no files but ``convergence.csv``), recorded against iteration,
         epoch and training seconds: the convergence curve (``eval_every``)."""
         from glint_mi.evaluation import metrics as M
-        from glint_mi.evaluate import evaluate
+        from glint_mi.evaluation.renders import evaluate
 
         m = evaluate(self.integ_for_eval(), self.eval_views(), write=False, **self.eval_options())["metrics"]
         row = {"iteration": self.it, "epoch": self.epoch,
@@ -755,8 +755,8 @@ class Trainer:
         for role in set(self.sets) - set(sets):
             (model / f"{role}.ply").unlink(missing_ok=True)
         v = (self.ds.test_views or self.ds.train_views)[0]
-        from glint_mi.dataset.cameras import Camera
-        from glint_mi.dataset.generate import sensor_xml
+        from glint_mi.data.cameras import Camera
+        from glint_mi.data.cameras import sensor_xml
 
         if self.env is not None:  # refgs: the directional grid, [h, w, 3] log-radiance
             buf = io.BytesIO()

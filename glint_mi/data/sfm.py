@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from glint_mi.conventions import qvec_to_rotmat
-from glint_mi.dataset.cameras import Camera, colmap_pose
+from glint_mi.data.cameras import Camera, colmap_pose
 
 
 @contextlib.contextmanager

@@ -151,3 +151,15 @@ def write_transforms_json(path: Path, cams: list[Camera]) -> None:
     data = {"fl_x": c0.fx, "fl_y": c0.fy, "cx": c0.cx, "cy": c0.cy, "w": c0.width, "h": c0.height,
             "camera_model": "OPENCV", "frames": frames}
     path.write_text(json.dumps(data, indent=1))
+
+
+def sensor_xml(cam: Camera, spp: int) -> str:
+    """A Mitsuba perspective sensor for ``cam`` (XML text, indented for a <scene>)."""
+    mat = " ".join(f"{v:.10g}" for v in cam.c2w.ravel())
+    return (f'    <sensor type="perspective" id="{cam.name}">\n'
+            f'        <float name="fov" value="{cam.fov_x_deg:.10g}"/><string name="fov_axis" value="x"/>\n'
+            f'        <transform name="to_world"><matrix value="{mat}"/></transform>\n'
+            f'        <film type="hdrfilm"><integer name="width" value="{cam.width}"/>'
+            f'<integer name="height" value="{cam.height}"/><rfilter type="box"/></film>\n'
+            f'        <sampler type="independent"><integer name="sample_count" value="{spp}"/></sampler>\n'
+            f'    </sensor>\n')
