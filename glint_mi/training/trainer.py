@@ -14,31 +14,25 @@ evaluation of :mod:`glint_mi.evaluate`.
 from __future__ import annotations
 
 import contextlib
-import csv
-import dataclasses
-import io
-import json
 import signal
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from glint_mi import conventions as cv
-from glint_mi.training import losses as L
-from glint_mi.training.components import ComponentsPolicy
-from glint_mi.training.inputs import training_inputs
-from glint_mi.config import LOSS_NAMES, TrainConfig
-from glint_mi.data import Dataset, DatasetError, load_dataset
-from glint_mi.evaluation.renders import eval_options
-from glint_mi.model.examples import gaussian_scene_dict
-from glint_mi.model.gaussians import GaussianSet
-from glint_mi.model.files import TRAINING_AOVS, integrator_props, model_xml, shape_props
+import glint_mi.training.losses as L
+from glint_mi.config import TrainConfig
 from glint_mi.model.render import floats
-from glint_mi.runs import RunError, atomic_write_bytes, atomic_write_text, hold_run, load_run_dataset, read_checkpoint
-from glint_mi.scene import OptimScene, check_settings, initial_sets, read_scene
-from glint_mi.training.optim import RAW_FIELDS, Adam, raw_gradients
-from glint_mi.training.strategy import Strategy
+from glint_mi.runs import load_run_dataset
+from glint_mi.scene import OptimScene
+import glint_mi.training.builder as builder
+import glint_mi.training.outputs as outputs
+from glint_mi.training.optim import raw_gradients
+
+if TYPE_CHECKING:
+    from glint_mi.data import Dataset
+    from glint_mi.model.gaussians import GaussianSet
 
 PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 
@@ -66,18 +60,6 @@ def budget_full(out: dict, max_hits: int, read: bool = True):
     return share
 
 
-def check_patch(cfg, ds) -> None:
-    """Refuse a patch that does not fit in a training view (a large downscale leaves small images), before the run
-    folder is made."""
-    from glint_mi.config import ConfigError
-
-    small = min(ds.train_views, key=lambda v: min(v.width, v.height))
-    if cfg.patch > min(small.width, small.height):
-        raise ConfigError(f"'patch' = {cfg.patch}: a {cfg.patch} x {cfg.patch} patch does not fit in training view "
-                          f"'{small.name}' ({small.width} x {small.height} at downscale {cfg.downscale}); use "
-                          f"--set patch={max(3, min(small.width, small.height))} or a smaller downscale.")
-
-
 class Trainer:
     def __init__(self, run_dir: str | Path, cfg: TrainConfig, scene: OptimScene | None = None,
                  dataset: Dataset | None = None, log=print, resume: bool = False):
@@ -103,80 +85,9 @@ class Trainer:
         self.stop_requested = False
         # phase(name) -> context manager around each part of a step; benchmarks/profile_step.py times them
         self.phase = lambda name: contextlib.nullcontext()
-        if resume:
-            self._load_checkpoint()
-        else:
-            self._fresh()
-        from glint_mi.machine import describe
-
-        self.report["machine"] = describe()  # where this run (its latest segment, when resumed) trained
-        cfg = self.cfg
-        if cfg.eval_depth == "first_surface":  # TSGS's depth reads each test view's mask: refuse before training
-            glass_of = eval_options(cfg, self.ds.root)["glass_of"]
-            for v in self.ds.test_views:
-                glass_of(v)
-        self.bank = training_inputs(self.ds, cfg, "transmission" in self.sets, self.report, self.log,
-                                    getattr(self, "_resume_affine", None))  # set by _load_checkpoint only
-        if not resume:
-            self._glass_cue_check()
-        from glint_mi.data.priors import priors_are_derived
-
-        self.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(self.ds.root))
-        self._build()
+        builder.assemble(self, resume)
 
     # ------------------------------------------------------------ set-up
-    def _fresh(self):
-        if self.scene_spec is None:
-            raise RunError("a new run needs an optimisation scene (python -m glint_mi.scene DATASET > scene.xml).")
-        if self.ds is None:
-            self.ds = load_dataset(self.scene_spec.dataset, downscale=self.cfg.downscale,
-                                   missing=self.scene_spec.missing, log=self.log)
-            self.log(self.ds.summary())
-        if not self.ds.train_views:
-            raise DatasetError(f"{self.ds.root}: no training views (check split.json).")
-        if self.cfg.priors == "all":  # before SfM and initialisation: a bad prior is found in seconds, not minutes
-            from glint_mi.data.priors import PriorError, check_priors
-
-            problems = check_priors(self.ds.root, self.ds.train_views)
-            if problems:
-                raise PriorError("\n".join(problems))
-        check_settings(self.scene_spec, self.cfg)
-        check_patch(self.cfg, self.ds)
-        self._set_budget()
-        sets, (lo, hi, extent), rep = initial_sets(self.scene_spec, self.ds, self.cfg, self.rng, self.log)
-        roles = self.cfg.roles()
-        self.sets = {r: s for r, s in sets.items() if r in roles}
-        self.bounds = (lo, hi)
-        self.extent = float(extent)
-        self.report["init"] = {**rep, "extent": self.extent, "box": [lo.tolist(), hi.tolist()]}
-        self.env = self.env_adam = None
-        if self.cfg.blend == "refgs":
-            self._refgs_start()
-        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
-        self.strategy = Strategy(self.cfg, self.extent, np.random.default_rng([self.cfg.seed, 1]))  # own stream
-        self.components = ComponentsPolicy(self.cfg)
-        self.report["components"] = self.components.decisions
-        self._lock = hold_run(self.run_dir)  # before anything is written (creates the folder)
-        self.cfg.save(self.run_dir / "config.json")
-        atomic_write_text(self.run_dir / "run.json", json.dumps(
-            {"scene": str(self.scene_spec.path), "dataset": str(self.ds.root), "dataset_options": self.ds.options,
-             "dataset_notes": self.ds.notes, "sparse": str(self.ds.sparse) if self.ds.sparse else None,
-             "tracks_distorted": self.ds.tracks_distorted}, indent=1))
-
-    def _refgs_start(self):
-        """Ref-GS's starting point: roughness 0.5 (its sigmoid(0); beta carries it), the albedo composited in linear
-        space (the SfM colours converted, so the first image shows them), and the directional grid at its initial
-        value (glint_env)."""
-        from glint_mi_plugins.glint_env import DirectionalGrid
-
-        gs = self.sets["interface"]
-        gs.logit_specular[:] = 0.0
-        colour = gs.sh[:, 0] * cv.SH_C0 + 0.5
-        gs.sh[:, 0] = ((cv.srgb_to_linear(np.clip(colour, 0.0, 1.0)) - 0.5) / cv.SH_C0).astype(gs.sh.dtype)
-        grid = DirectionalGrid(self.cfg.env_levels, init=float(np.log(self.cfg.env_init)))
-        self.env = grid.data.copy()  # channel-major flat, as the integrator holds it
-        self.env_adam = (np.zeros_like(self.env), np.zeros_like(self.env), np.zeros(1))
-
     def _env_step(self):
         """Dense Adam on the refgs grid (every ray reads it), then back to the integrator with gradients on."""
         grid = self.integ.env
@@ -190,52 +101,10 @@ class Trainer:
         grid.data = self.env
         grid.enable_grad()
 
-    def _set_budget(self):
-        """epochs -> iterations from the training set's size (recomputed identically on resume)."""
-        self.train_pixels = sum(v.width * v.height for v in self.ds.train_views)
-        self.cfg = self.cfg.with_budget(self.train_pixels)
-
     @property
     def epoch(self) -> float:
         """Rays traced so far per training pixel."""
         return self.it * self.cfg.rays_per_iteration() / self.train_pixels
-
-    def _lrs(self):
-        c = self.cfg
-        lrs = {"means": c.lr_position * self.extent, "log_scales": c.lr_scale, "quats_wxyz": c.lr_rotation,
-               "logit_opacity": c.lr_opacity, "sh": c.lr_sh_dc, "sh_rest": c.lr_sh_rest,
-               "logit_specular": c.lr_specular, "logit_transparency": c.lr_transparency}
-        return {k: v * c.lr_multiplier for k, v in lrs.items()}
-
-    def _build(self):
-        """(Re)create the Mitsuba scene for the current sets (once per run; sizes change through traverse)."""
-        import mitsuba as mi
-
-        # the integrator traces every enabled set for every ray ("all"): its per-ray "auto" skipping folds a skipped
-        # weight into k_d, which zeroes the gradient that would let beta (or tau) grow from its initial value
-        props = integrator_props(self.cfg, components="all", aovs=TRAINING_AOVS)
-        self.scene = mi.load_dict(gaussian_scene_dict(self.sets, **shape_props(self.cfg), **props))
-        self.integ = self.scene.integrator()
-        self.params = mi.traverse(self.integ)
-        c = self.cfg
-        rays = c.rays_per_iteration()
-        if c.stored_hits and not self.integ.lists_fit(rays, c.stored_hits_mb):
-            need = self.integ.lists_mb(rays)
-            self.log(f"note: a batch's stored hit lists ({rays:,} rays x max_hits {c.max_hits}) need {need:,.0f} MiB, "
-                     f"over stored_hits_mb {c.stored_hits_mb:g}: the replay re-traces every pass (on an H100 at 1M "
-                     f"rays a step: 2.33 s a step against 1.20 s with the lists). Raise it: --set stored_hits_mb="
-                     f"{int(need) + 1}")
-        self.dev = None
-        self._host_stale = False  # the device holds newer values than self.sets (update: device)
-        if self.cfg.update == "device":
-            from glint_mi.training.device_step import DeviceUpdate
-
-            self.dev = DeviceUpdate(self.adam, self.cfg.kernel, self.extent)
-            for role, gs in self.sets.items():
-                self.dev.load(role, gs, self.strategy)
-        self._push()
-        if self.integ.env is not None:
-            self._push_env()
 
     def _push(self, roles=None):
         """Send the sets' current values (and sizes) to the renderer; a `data` change rebuilds that set's BVH, so
@@ -491,24 +360,6 @@ class Trainer:
             self.components.record(role, keep, it, why)
             self.log(f"components auto: {'keep' if keep else 'drop'} {role}: {why}")
 
-    def _glass_cue_check(self) -> None:
-        """Before training: drop the secondary sets where there is no glass cue (ComponentsPolicy.glass_cue_drops),
-        before the scene is built (never given a BVH, traced or saved); a lone interface trains as 3DGS."""
-        drops = self.components.glass_cue_drops(self.sets, "albedo" in self.bank.has, self.bank.cue is not None)
-        for role, why in drops.items():
-            self.components.record(role, False, 0, why)
-            n = len(self.sets.pop(role))
-            self.log(f"components auto: drop {role} (its {n} initial Gaussians discarded): {why}")
-        profile = self.components.no_glass_profile() if drops else None
-        if profile:
-            self.cfg = dataclasses.replace(self.cfg, **profile)
-            self.strategy.cfg = self.components.cfg = self.cfg
-            self.cfg.save(self.run_dir / "config.json")
-            self.report["no_glass"] = profile
-            said = ", ".join(f"{k}={v}" for k, v in profile.items())
-            self.log(f"no glass: the interface alone is trained as 3DGS ({said}; no_glass: 3dgs+sfm adds glint_mi's "
-                     f"SfM depth term, glint keeps GLINT's surfels and weights)")
-
     @property
     def dropped(self) -> dict[str, str]:
         """The sets components: auto dropped (role -> why)."""
@@ -608,26 +459,6 @@ class Trainer:
                      f"{self.cfg.max_hits}) in the last tenth of the run: they are cut short and the model learns "
                      f"the cut; train again with --set max_hits={2 * self.cfg.max_hits}")
 
-    def evaluate_now(self) -> dict:
-        """Test-view metrics of the current model (no files but ``convergence.csv``), recorded against iteration,
-        epoch and training seconds: the convergence curve (``eval_every``)."""
-        from glint_mi.evaluation import metrics as M
-        from glint_mi.evaluation.renders import evaluate
-
-        m = evaluate(self.integ_for_eval(), self.eval_views(), write=False, **self.eval_options())["metrics"]
-        row = {"iteration": self.it, "epoch": self.epoch,
-               "train_s": self.elapsed, "gaussians": sum(len(self.sets[r]) for r in self.kept()),
-               **{k: m.get(k, float("nan")) for k in M.METRICS}}
-        self.report.setdefault("convergence", [])
-        if not any(r["iteration"] == self.it for r in self.report["convergence"]):
-            self.report["convergence"].append(row)
-        buf = io.StringIO()
-        w = csv.DictWriter(buf, fieldnames=list(row))
-        w.writeheader()
-        w.writerows(self.report["convergence"])
-        atomic_write_text(self.run_dir / "convergence.csv", buf.getvalue())
-        return row
-
     def eval_views(self):
         """The test views (the training views when there are none) at the training resolution, or at the
         dataset's full resolution with ``eval_full``."""
@@ -642,7 +473,7 @@ class Trainer:
     def eval_options(self) -> dict:
         """How :func:`glint_mi.evaluate.evaluate` reads this method's depth: the config's ``eval_depth`` rule and,
         for TSGS's first_surface, each view's transparency mask (priors/glass)."""
-        return eval_options(self.cfg, self.ds.root)
+        return outputs.eval_options(self.cfg, self.ds.root)
 
     def integ_for_eval(self):
         """The integrator with every kept set enabled (dropped sets stay out), for rendering and evaluation."""
@@ -659,118 +490,21 @@ class Trainer:
         self.sync()
         return {r: s for r, s in self.sets.items() if r not in self.dropped}
 
-    def save_checkpoint(self) -> Path:
-        self.settle()
-        self.sync()
-        arrays = {"iteration": np.array(self.it), "elapsed": np.array(self.elapsed), "extent": np.array(self.extent),
-                  "bounds": np.stack(self.bounds), "rng": np.array(json.dumps(self.rng.bit_generator.state)),
-                  "strategy_rng": np.array(json.dumps(self.strategy.rng.bit_generator.state)),
-                  "dropped": np.array(json.dumps(self.dropped)), "report": np.array(json.dumps(self.report)),
-                  "history": np.array(json.dumps(self.history))}
-        for role, gs in self.sets.items():
-            for f in RAW_FIELDS:
-                arrays[f"set/{role}/{f}"] = getattr(gs, f)
-        if self.cfg.depth_align == "image" and self.bank.depth_affine is not None:  # refitted from the model
-            arrays["depth_affine"] = self.bank.depth_affine
-        arrays.update({f"adam/{k}": v for k, v in self.adam.state_dict().items()})
-        if self.env is not None:
-            arrays.update({"env": self.env, "env_adam/m": self.env_adam[0], "env_adam/v": self.env_adam[1],
-                           "env_adam/n": self.env_adam[2]})
-        arrays.update({f"strategy/{k}": v for k, v in self.strategy.state_dict().items()})
-        buf = io.BytesIO()
-        np.savez(buf, **arrays)
-        path = self.run_dir / "checkpoint.npz"
-        atomic_write_bytes(path, buf.getvalue())
-        self._write_log()
-        return path
+    # ------------------------------------------------------ persistence (glint_mi.training.outputs)
+    def evaluate_now(self) -> dict:
+        """Test-view metrics of the current model recorded against iteration, epoch and training seconds
+        (``convergence.csv``; ``eval_every``)."""
+        return outputs.evaluate_now(self)
 
-    def _load_checkpoint(self):
-        path = self.run_dir / "checkpoint.npz"
-        if not self.run_dir.is_dir():
-            raise RunError(f"{self.run_dir}: no such run folder; --resume needs a folder made by glint_mi.optimize.")
-        # before the checkpoint is looked at: another process may be setting the run up or writing its checkpoint
-        self._lock = hold_run(self.run_dir)
-        if not path.exists():
-            raise RunError(f"{path}: no checkpoint to resume (the run was stopped before its first checkpoint); "
-                           f"start it again with `python -m glint_mi.optimize scene.xml --out {self.run_dir}` after "
-                           f"removing the folder.")
-        info = json.loads((self.run_dir / "run.json").read_text())
-        self.scene_spec = read_scene(info["scene"]) if Path(info["scene"]).exists() else None
-        if self.ds is None:
-            self.ds = load_run_dataset(self.run_dir, self.cfg, log=self.log)
-        self._set_budget()
-        z = read_checkpoint(path)
-        self.it, self.elapsed = int(z["iteration"]), float(z["elapsed"])
-        self.extent = float(z["extent"])
-        self.bounds = (z["bounds"][0], z["bounds"][1])
-        self.rng.bit_generator.state = json.loads(str(z["rng"]))
-        self.report = json.loads(str(z["report"]))
-        if self.report.get("no_glass"):  # dropped before training: it trained as 3DGS, whatever config resumes it
-            self.cfg = dataclasses.replace(self.cfg, **self.report["no_glass"])
-        self.components = ComponentsPolicy(self.cfg)
-        self.components.load_state_dict({"dropped": json.loads(str(z["dropped"])),
-                                         "decisions": self.report.get("components", {})})
-        self.report["components"] = self.components.decisions
-        self.history = json.loads(str(z["history"]))
-        self._resume_affine = z.get("depth_affine")
-        roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)
-        self.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
-        self.adam = Adam(self._lrs(), eps=self.cfg.adam_eps, selective=self.cfg.adam == "selective")
-        self.adam.load_state_dict({k[5:]: v for k, v in z.items() if k.startswith("adam/")})
-        self.env = self.env_adam = None
-        if "env" in z:
-            self.env = z["env"].astype(np.float32)
-            self.env_adam = (z["env_adam/m"].copy(), z["env_adam/v"].copy(), z["env_adam/n"].copy())
-        srng = np.random.default_rng()
-        srng.bit_generator.state = json.loads(str(z["strategy_rng"]))
-        self.strategy = Strategy(self.cfg, self.extent, srng)
-        self.strategy.load_state_dict({k[9:]: v for k, v in z.items() if k.startswith("strategy/")})
-        self.log(f"resumed {self.run_dir} at iteration {self.it}")
+    def save_checkpoint(self) -> Path:
+        return outputs.save_checkpoint(self)
 
     def _write_log(self):
-        self.settle()
-        rows = self.history
-        if rows:
-            keys = ["iteration", "stage", *LOSS_NAMES, "rays_per_s", "gaussians", "share_reflection",
-                    "share_transmission", "mask_t", "gap_behind", "gap_front", "gain_reflection",
-                    "gain_transmission", "budget_full"]
-            buf = io.StringIO()
-            w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
-            w.writeheader()
-            w.writerows(rows)
-            atomic_write_text(self.run_dir / "log.csv", buf.getvalue())
-        rep = dict(self.report)
-        rep["events"] = [dataclasses.asdict(e) for e in self.strategy.events]
-        rep["dropped"] = self.dropped
-        rep["sizes"] = {r: len(self.sets[r]) for r in self.kept()}
-        atomic_write_text(self.run_dir / "report.json", json.dumps(rep, indent=1))
+        outputs.write_log(self)
 
     def save_model(self) -> Path:
         """model/<role>.ply (3DGS + specular/transparency) and model/scene.xml renderable by Mitsuba."""
-        model = self.run_dir / "model"
-        model.mkdir(exist_ok=True)
-        sets = self.active_sets()
-        for role, gs in sets.items():
-            gs.save_ply(model / f"{role}.ply")
-        for role in set(self.sets) - set(sets):
-            (model / f"{role}.ply").unlink(missing_ok=True)
-        v = (self.ds.test_views or self.ds.train_views)[0]
-        from glint_mi.data.cameras import Camera
-        from glint_mi.data.cameras import sensor_xml
+        return outputs.save_model(self)
 
-        if self.env is not None:  # refgs: the directional grid, [h, w, 3] log-radiance
-            buf = io.BytesIO()
-            np.save(buf, self.integ.env.numpy())  # what _push_env last sent: self.env as [h, w, 3]
-            atomic_write_bytes(model / "env.npy", buf.getvalue())
-        props = {"dataset": str(self.ds.root.resolve()),
-                 **integrator_props(self.cfg, components="all", env_file="env.npy")}
-        xml = model_xml(props, list(sets), shape_props(self.cfg), sensor_xml(Camera.from_view(v), 1),
-                        f"trained by glint_mi ({self.it} iterations); render with mitsuba or python -m "
-                        f"glint_mi.evaluate")
-        atomic_write_text(model / "scene.xml", xml)
-        self._write_log()
-        if self.history:
-            from glint_mi.evaluation.plots import training_curves
-
-            training_curves(self.history, self.run_dir / "curves.png")
-        return model
+    def _lrs(self):
+        return builder.learning_rates(self)
