@@ -17,7 +17,6 @@ benchmarks/results/shells_<name>.md.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 from pathlib import Path
 
@@ -56,7 +55,7 @@ def main(argv=None) -> int:
     rows, renders = [], {}
     for shells in (False, True):
         for hits in (base.max_hits, args.free_hits):
-            cfg = dataclasses.replace(base, opacity_shells=shells, max_hits=hits)
+            cfg = base.replace(opacity_shells=shells, max_hits=hits)
             tr = Trainer(args.run, cfg, resume=True, log=lambda *a, **k: None)
             views = tr.ds.test_views[:args.views]
             res = evaluate(tr.integ_for_eval(), views, write=False)

@@ -260,7 +260,7 @@ def targets(tr: Trainer, rays: int, steps_n: int = 3) -> dict:
     and the paper's budget at the training rate measured."""
     c = tr.cfg
     patches = max(1, rays // (c.patch * c.patch))
-    tr.cfg = TrainConfig.from_dict({**c.to_dict(), "patches": patches}, source="targets")
+    tr.cfg = c.replace(patches=patches)
     it0 = tr.it
     times = steps(tr, steps_n + 1, None)[1:]  # the first step compiles the kernels of this batch size
     tr.it, tr.cfg = it0, c
@@ -366,7 +366,7 @@ def main(argv=None) -> int:
     overrides = parse_sets(args.set)
     if args.run:
         cfg = TrainConfig.load(Path(args.run) / "config.json")
-        cfg = TrainConfig.from_dict({**cfg.to_dict(), **overrides}, source="--set")
+        cfg = cfg.replace(**overrides)
         tr = Trainer(args.run, cfg, resume=True, log=quiet)
         name = args.name or Path(args.run).name
     else:

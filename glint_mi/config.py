@@ -261,20 +261,60 @@ LAYERS = {"run": RunConfig, "model": ModelConfig, "render": RenderConfig, "optim
           "evaluation": EvalConfig}
 
 
-@dataclasses.dataclass
-class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimConfig, RenderConfig, ModelConfig,
-                  RunConfig):  # fields in LAYERS' order (dataclasses collect them from the last base up)
-    """A run's configuration: the layers above composed (every field in exactly one layer; the run folder's
-    config.json holds them flat, as :meth:`to_dict` writes them). ``cfg.layer('losses')`` is one layer's values,
-    :meth:`compose` builds a config from layers."""
+FIELD_LAYER = {f.name: name for name, cls in LAYERS.items() for f in dataclasses.fields(cls)}  # field -> its layer
+
+
+@dataclasses.dataclass(init=False)
+class TrainConfig:
+    """A run's configuration: one instance of each layer (``cfg.losses``, ``cfg.render``, ...; :data:`LAYERS`). A
+    field is set by its path (``losses.w_normal``; ``--set losses.w_normal=0.1``) or, as every name is unique, by its
+    bare name (``w_normal``), which resolves to its layer; reading ``cfg.w_normal`` is ``cfg.losses.w_normal``. A run
+    folder's config.json holds the layers as objects; a flat one (runs before 2026-11-28) loads through the
+    migrations."""
+
+    run: RunConfig = dataclasses.field(default_factory=RunConfig)
+    model: ModelConfig = dataclasses.field(default_factory=ModelConfig)
+    render: RenderConfig = dataclasses.field(default_factory=RenderConfig)
+    optim: OptimConfig = dataclasses.field(default_factory=OptimConfig)
+    losses: LossConfig = dataclasses.field(default_factory=LossConfig)
+    schedule: ScheduleConfig = dataclasses.field(default_factory=ScheduleConfig)
+    densify: DensifyConfig = dataclasses.field(default_factory=DensifyConfig)
+    evaluation: EvalConfig = dataclasses.field(default_factory=EvalConfig)
+
+    def __init__(self, run: RunConfig | None = None, model: ModelConfig | None = None,
+                 render: RenderConfig | None = None, optim: OptimConfig | None = None, losses: LossConfig | None = None,
+                 schedule: ScheduleConfig | None = None, densify: DensifyConfig | None = None,
+                 evaluation: EvalConfig | None = None, **fields):
+        """Layers (the others at their defaults) and fields by bare name or path, unchecked (:meth:`from_dict`
+        checks)."""
+        given = dict(run=run, model=model, render=render, optim=optim, losses=losses, schedule=schedule,
+                     densify=densify, evaluation=evaluation)
+        for name, cls in LAYERS.items():
+            object.__setattr__(self, name, given[name] if given[name] is not None else cls())
+        for key, value in flatten(fields, "TrainConfig").items():
+            if key not in FIELD_LAYER:
+                raise TypeError(f"TrainConfig has no field '{key}'")
+            setattr(getattr(self, FIELD_LAYER[key]), key, value)
+
+    def __getattr__(self, name: str):
+        """A field by its bare name, from its layer (only called when the name is not a layer)."""
+        layer = FIELD_LAYER.get(name)
+        if layer is None:
+            raise AttributeError(f"TrainConfig has no field '{name}'")
+        return getattr(object.__getattribute__(self, layer), name)
+
+    def __setattr__(self, name: str, value) -> None:
+        if name in FIELD_LAYER:  # a bare field name writes into its layer (no field is ever set on the top level)
+            setattr(getattr(self, FIELD_LAYER[name]), name, value)
+        else:
+            object.__setattr__(self, name, value)
 
     # -------------------------------------------------------------- layers
     def layer(self, name: str):
-        """One layer's values (e.g. ``cfg.layer('losses')``, a :class:`LossConfig`)."""
+        """One layer's values (e.g. ``cfg.layer('losses')``, a :class:`LossConfig`; a copy)."""
         if name not in LAYERS:
             raise ConfigError(f"unknown config layer '{name}'; the layers are {', '.join(LAYERS)}.")
-        cls = LAYERS[name]
-        return cls(**{f.name: getattr(self, f.name) for f in dataclasses.fields(cls)})
+        return dataclasses.replace(getattr(self, name))
 
     @classmethod
     def compose(cls, *layers, source: str = "config") -> "TrainConfig":
@@ -287,6 +327,14 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
             values.update(dataclasses.asdict(part))
         return cls.from_dict(values, source=source)
 
+    def flat(self) -> dict:
+        """Every field by its bare name (the layers' order)."""
+        return {k: v for name in LAYERS for k, v in dataclasses.asdict(getattr(self, name)).items()}
+
+    def replace(self, **changes) -> "TrainConfig":
+        """A checked copy with ``changes`` (bare names or paths)."""
+        return type(self).from_dict({**self.flat(), **flatten(changes)})
+
     # -------------------------------------------------------------- helpers
     @classmethod
     def for_preset(cls, preset: str, variant: str = DEFAULT_VARIANT, **overrides) -> "TrainConfig":
@@ -294,6 +342,7 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
             raise ConfigError(f"unknown preset '{preset}'; use one of {sorted(PRESETS)}.")
         if variant not in VARIANTS:
             raise ConfigError(f"unknown variant '{variant}'; use one of {sorted(VARIANTS)}.")
+        overrides = flatten(overrides)
         if "iterations" in overrides and "epochs" not in overrides:  # an explicit count is a fixed budget
             overrides = {**overrides, "epochs": 0.0}
         values = {**PRESETS[preset], **VARIANTS[variant], "preset": preset, "variant": variant, **overrides}
@@ -301,12 +350,21 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
 
     @classmethod
     def from_dict(cls, values: dict, source: str = "config") -> "TrainConfig":
-        names = {f.name: f for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - set(names))
+        """A checked config from bare names, paths (``losses.w_normal``) or layer objects (``{"losses": {...}}``)."""
+        values = flatten(values, source)
+        unknown = sorted(set(values) - set(FIELD_LAYER))
         if unknown:
-            raise ConfigError(f"{source}: unknown field(s) {unknown}; valid fields: {sorted(names)}.")
+            import difflib
+
+            hints = [f"{u} (did you mean {near[0]}?)" if (near := difflib.get_close_matches(u, FIELD_LAYER, n=1))
+                     else u for u in unknown]
+            raise ConfigError(f"{source}: unknown field(s) {', '.join(hints)}; a field is named by its path "
+                              f"(losses.w_normal) or its bare name; the layers: "
+                              + "; ".join(f"{n}: {', '.join(f.name for f in dataclasses.fields(c))}"
+                                          for n, c in LAYERS.items()) + ".")
         values = {k: _typed(source, k, v, type(getattr(_DEFAULTS, k))) for k, v in values.items()}
-        cfg = cls(**values)
+        cfg = cls(**{name: layer_cls(**{k: v for k, v in values.items() if FIELD_LAYER[k] == name})
+                     for name, layer_cls in LAYERS.items()})
         cfg.validate(source)
         return cfg
 
@@ -319,16 +377,19 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
             raise ConfigError(f"{path}: cannot read the config ({e}); it must be a JSON object of TrainConfig fields.")
         if not isinstance(values, dict):
             raise ConfigError(f"{path}: holds a JSON {type(values).__name__}, not an object; write the fields as "
-                              f'{{"field": value, ...}}, e.g. {{"components": "all", "w_trans": 0}}.')
+                              f'{{"layer": {{"field": value}}}} or {{"layer.field": value}}, e.g. '
+                              f'{{"model": {{"components": "all"}}, "losses.w_trans": 0}}.')
+        values = flatten(values, str(path))
         for key in ("preset", "variant"):
             if key in values and not isinstance(values[key], str):
                 raise ConfigError(f"{path}: '{key}' = {values[key]!r}: must be a string.")
         base = cls.for_preset(values.get("preset", "quick"), values.get("variant", "supplement"))
         values = migrate(values)
-        return cls.from_dict({**dataclasses.asdict(base), **values}, source=str(path))
+        return cls.from_dict({**base.flat(), **values}, source=str(path))
 
     def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
+        """The layers as objects, as config.json holds them."""
+        return {name: dataclasses.asdict(getattr(self, name)) for name in LAYERS}
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=1))
@@ -341,13 +402,12 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
         need(self.iterations >= 1, "iterations", "must be >= 1")
         need(0 <= self.seed < 2 ** 63, "seed", "must be an integer in [0, 2^63) (numpy's generators take no negative "
                                                "seed)")
-        for f in dataclasses.fields(self):  # weights, learning rates and schedule fractions
-            v = getattr(self, f.name)
-            if f.name.startswith(("w_", "lr_")):
-                need(v >= 0, f.name, "must be >= 0")
-            if f.name.endswith(("_from", "_until", "_every")) and isinstance(v, float) or f.name in (
+        for name, v in self.flat().items():  # weights, learning rates and schedule fractions
+            if name.startswith(("w_", "lr_")):
+                need(v >= 0, name, "must be >= 0")
+            if name.endswith(("_from", "_until", "_every")) and isinstance(v, float) or name in (
                     "warmup", "depth_refit", "prior_decay", "densify_top"):
-                need(0 <= v <= 1, f.name, "is a fraction of the run (or of a set), between 0 and 1")
+                need(0 <= v <= 1, name, "is a fraction of the run (or of a set), between 0 and 1")
         for name, low in (("max_hits", 1), ("max_gaussians", 1), ("log_every", 1), ("checkpoint_every", 0),
                           ("threads", 0), ("eval_every", 0), ("grid_n", 1), ("grid_k", 1), ("init_min_points", 0),
                           ("env_levels", 1)):
@@ -406,10 +466,9 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
              f"use auto, all or a comma list of {cv.ROLES}")
         need(comps in ("auto", "all") or "interface" in comps.split(","), "components",
              "the interface set is always needed")
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if f.name.startswith(("w_", "lr_")):
-                need(isinstance(v, (int, float)) and v >= 0, f.name, "must be a number >= 0")
+        for name, v in self.flat().items():
+            if name.startswith(("w_", "lr_")):
+                need(isinstance(v, (int, float)) and v >= 0, name, "must be a number >= 0")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "normal_from", "trans_from",
                   "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from",
                   "prior_decay"):
@@ -424,7 +483,7 @@ class TrainConfig(EvalConfig, DensifyConfig, ScheduleConfig, LossConfig, OptimCo
         if self.epochs <= 0:
             return self
         its = max(1, int(math.ceil(self.epochs * train_pixels / self.rays_per_iteration())))
-        return dataclasses.replace(self, iterations=its)
+        return self.replace(iterations=its)
 
     def at(self, fraction: float) -> int:
         """The iteration at ``fraction`` of the run."""
@@ -458,6 +517,30 @@ MIGRATIONS = (
     ("the blend option", lambda v: "fresnel" in v and "blend" not in v,
      lambda v: {**{k: x for k, x in v.items() if k != "fresnel"}, "blend": "fresnel" if v["fresnel"] else "envgs"}),
 )
+
+
+def flatten(values: dict, source: str = "config") -> dict:
+    """Bare field names from any mix of bare names, paths (``losses.w_normal``) and layer objects
+    (``{"losses": {"w_normal": 0.1}}``); a path whose layer does not hold the field is refused, naming its layer."""
+    out = {}
+    for key, value in values.items():
+        if key in LAYERS and isinstance(value, dict):
+            items = [(f"{key}.{k}", v) for k, v in value.items()]
+        else:
+            items = [(key, value)]
+        for path, v in items:
+            if "." in path:
+                layer, name = path.split(".", 1)
+                if layer not in LAYERS:
+                    raise ConfigError(f"{source}: '{path}': no layer '{layer}'; the layers are {', '.join(LAYERS)}.")
+                if FIELD_LAYER.get(name, layer) != layer:
+                    raise ConfigError(f"{source}: '{path}': {name} is in the {FIELD_LAYER[name]} layer; write "
+                                      f"{FIELD_LAYER[name]}.{name}.")
+                path = name
+            if path in out and out[path] != v:
+                raise ConfigError(f"{source}: '{path}' is given twice ({out[path]!r} and {v!r}); keep one.")
+            out[path] = v
+    return out
 
 
 def migrate(values: dict) -> dict:

@@ -2,7 +2,7 @@
 
     python -m glint_mi.optimize scene.xml --preset quick --out runs/room      # new run
     python -m glint_mi.optimize --resume runs/room                           # continue exactly (Ctrl-C saves)
-    python -m glint_mi.optimize scene.xml --set w_trans=0 --set components=all  # any TrainConfig field
+    python -m glint_mi.optimize scene.xml --set losses.w_trans=0 --set model.components=all  # any field, by path
     python -m glint_mi.optimize scene.xml --method 3dgs                       # a baseline (glint_mi.methods)
 
 Prints a metrics table at the end; everything is written under ``--out`` (see glint_mi.training.trainer).
@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig, migrate
+from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig, flatten, migrate
 
 
 def parse_sets(items) -> dict:
@@ -42,11 +42,11 @@ def build_config(args, scene_settings: dict | None = None, scene_path=None, note
     method = getattr(args, "method", None) or "glint"
     if method not in METHODS:
         raise ConfigError(f"--method {method}: unknown; use one of {sorted(METHODS)}.")
-    sources: list[tuple[str, dict]] = []  # (name, values), later ones override earlier ones
-    sources.append((f"method {method}", dict(METHODS[method].overrides)))
+    sources: list[tuple[str, dict]] = []  # (name, values by bare field name), later ones override earlier ones
+    sources.append((f"method {method}", flatten(METHODS[method].overrides)))
     if args.config:
         TrainConfig.load(args.config)  # validates, with errors naming the file
-        sources.append((f"--config {args.config}", migrate(json.loads(args.config.read_text()))))
+        sources.append((f"--config {args.config}", migrate(flatten(json.loads(args.config.read_text())))))
     flags = {}
     if args.iterations is not None:
         if args.iterations < 1:
@@ -55,7 +55,7 @@ def build_config(args, scene_settings: dict | None = None, scene_path=None, note
         flags["iterations"], flags["epochs"] = args.iterations, 0.0
     if args.seed is not None:
         flags["seed"] = args.seed
-    sources.append(("the command line", {**flags, **parse_sets(args.set)}))
+    sources.append(("the command line", {**flags, **flatten(parse_sets(args.set), "--set")}))
     values, where = {}, {}
     for name, vals in sources:
         for k, v in vals.items():
@@ -94,7 +94,8 @@ def main(argv=None) -> int:
     ap.add_argument("--config", type=Path, help="JSON of TrainConfig fields")
     ap.add_argument("--iterations", type=int, help="a fixed iteration count instead of the preset's epochs budget")
     ap.add_argument("--seed", type=int)
-    ap.add_argument("--set", action="append", metavar="FIELD=VALUE", help="override a TrainConfig field")
+    ap.add_argument("--set", action="append", metavar="LAYER.FIELD=VALUE",
+                    help="override a config field by its path (losses.w_normal=0.1) or bare name (w_normal=0.1)")
     ap.add_argument("--no-eval", action="store_true", help="skip the test-view evaluation at the end")
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args(argv)

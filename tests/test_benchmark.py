@@ -12,6 +12,7 @@ import pytest
 from conftest import KBUFFER
 from glint_mi.data import load_dataset
 from glint_mi.dataset.generate import Preset, make_scene
+from glint_mi.config import TrainConfig
 from glint_mi.methods import METHODS, config_for
 from glint_mi.scene import read_scene
 from glint_mi.training.trainer import Trainer
@@ -30,7 +31,7 @@ def test_methods_are_configurations():
     # a method is checked when it is defined, not when it first runs
     from glint_mi.config import ConfigError
     from glint_mi.methods import Method
-    with pytest.raises(ConfigError, match=r"method 'typo': unknown field\(s\) \['w_l2'\]"):
+    with pytest.raises(ConfigError, match=r"method 'typo': unknown field\(s\) w_l2 \(did you mean w_l1\?\)"):
         Method("typo", {"w_l2": 1.0}, "a misspelled weight")
     with pytest.raises(ConfigError, match=r"method 'bad': 'max_hits' = 0: must be >= 1"):
         Method("bad", {"max_hits": 0}, "an impossible budget")
@@ -44,7 +45,7 @@ def test_prior_parity_rows_take_glints_inputs_and_weights():
     glint = TrainConfig.for_preset("tiny")
     for row, base in (("3dgs-priors", "3dgs"), ("2dgs-priors", "2dgs")):
         a, b = config_for(row, "tiny"), config_for(base, "tiny")
-        differ = {k for k in vars(a) if getattr(a, k) != getattr(b, k)}
+        differ = {k for k, v in a.flat().items() if v != getattr(b, k)}
         assert differ == {"priors", "w_depth", "w_normal", "w_l1", "w_dssim"}, (row, differ)
         for k in differ:
             assert getattr(a, k) == getattr(glint, k), (row, k)
@@ -71,7 +72,7 @@ def test_benchmark_tiny(tmp_path):
     # no silent fallback: each run trained the sets its method asks for, with its blending
     for method, sets in (("2dgs", {"interface"}), ("envgs", {"interface", "reflection"})):
         run = out / "runs" / "scene_000" / method
-        cfg = json.loads((run / "config.json").read_text())
+        cfg = TrainConfig.load(run / "config.json").flat()
         for k, v in METHODS[method].overrides.items():
             assert cfg[k] == v, (method, k)
         assert set(json.loads((run / "report.json").read_text())["sizes"]) == sets
@@ -318,7 +319,7 @@ def test_list_use_counts_listed_and_composited_entries(room, tmp_path):
     for s in full.values():
         assert 0 < s["composited"] <= s["listed"] and s["rounds"] >= 1, full
     cfg = json.loads((tmp_path / "run" / "config.json").read_text())
-    cfg["max_hits"] = 2
+    cfg["render"]["max_hits"] = 2
     (tmp_path / "run" / "config.json").write_text(json.dumps(cfg))
     cut = list_use.count_lists(tmp_path / "run", views=1)
     assert cut["interface"]["composited"] < full["interface"]["composited"], (cut, full)

@@ -1,5 +1,6 @@
-"""The configuration's layers (issue 45): every field in exactly one layer, the layers compose into the run's config,
-and a run folder's config.json stays flat (old ones still load: tests/test_train.py resumes the oldest format)."""
+"""The configuration's layers (issues 45, 64): every field in exactly one layer, TrainConfig holds one instance of
+each, a field is set by its path or bare name, and a run folder's config.json holds the layers as objects (flat ones
+still load: tests/test_train.py resumes the oldest format)."""
 import dataclasses
 import json
 
@@ -14,8 +15,13 @@ def test_every_field_is_in_exactly_one_layer():
         for f in dataclasses.fields(cls):
             assert f.name not in seen, (f.name, seen.get(f.name), name)
             seen[f.name] = name
-    assert list(seen) == [f.name for f in dataclasses.fields(TrainConfig)]  # the same fields, in layer order
+    assert list(seen) == list(TrainConfig().flat())  # the same fields, in layer order
     assert list(LAYERS) == ["run", "model", "render", "optim", "losses", "schedule", "densify", "evaluation"]
+    # TrainConfig holds the layers, not their fields
+    assert [f.name for f in dataclasses.fields(TrainConfig)] == list(LAYERS)
+    cfg = TrainConfig()
+    assert all(type(getattr(cfg, n)) is c for n, c in LAYERS.items())
+    assert cfg.w_normal is cfg.losses.w_normal and "w_normal" not in vars(cfg)
 
 
 def test_layers_compose_and_split():
@@ -34,9 +40,31 @@ def test_layers_compose_and_split():
         TrainConfig.compose(RenderConfig(max_hits=0))
 
 
-def test_saved_config_is_flat_and_round_trips(tmp_path):
+def test_saved_config_holds_layers_and_round_trips(tmp_path):
     cfg = TrainConfig.for_preset("tiny", seed=3, w_depth=0.2)
     cfg.save(tmp_path / "config.json")
     values = json.loads((tmp_path / "config.json").read_text())
-    assert all(not isinstance(v, dict) for v in values.values())
+    assert list(values) == list(LAYERS) and values["losses"]["w_depth"] == 0.2 and values["run"]["seed"] == 3
     assert TrainConfig.load(tmp_path / "config.json") == cfg
+    # a flat config.json (every run before 2026-11-28) still loads, to the same config
+    (tmp_path / "flat.json").write_text(json.dumps(cfg.flat()))
+    assert TrainConfig.load(tmp_path / "flat.json") == cfg
+
+
+def test_fields_by_path():
+    """--set losses.w_normal=0.1 (issue 64): a path names the field's owner; a bare name still resolves to it; a path
+    through the wrong layer, an unknown layer or one field given twice with two values is refused."""
+    cfg = TrainConfig.for_preset("tiny", **{"losses.w_normal": 0.05, "render.max_hits": 32})
+    assert cfg.losses.w_normal == 0.05 and cfg.render.max_hits == 32
+    assert TrainConfig.for_preset("tiny", w_normal=0.05, max_hits=32) == cfg
+    assert TrainConfig.from_dict({"losses": {"w_normal": 0.05}}).w_normal == 0.05
+    with pytest.raises(ConfigError, match=r"'render.w_normal': w_normal is in the losses layer; write losses.w_normal"):
+        TrainConfig.for_preset("tiny", **{"render.w_normal": 0.1})
+    with pytest.raises(ConfigError, match=r"'loss.w_normal': no layer 'loss'"):
+        TrainConfig.for_preset("tiny", **{"loss.w_normal": 0.1})
+    with pytest.raises(ConfigError, match=r"'w_normal' is given twice"):
+        TrainConfig.from_dict({"w_normal": 0.1, "losses.w_normal": 0.2})
+    with pytest.raises(ConfigError, match=r"unknown field\(s\) w_norml \(did you mean w_normal\?\)"):
+        TrainConfig.for_preset("tiny", w_norml=0.1)
+    again = cfg.replace(**{"losses.w_normal": 0.2})
+    assert again.w_normal == 0.2 and cfg.w_normal == 0.05  # a checked copy

@@ -107,7 +107,7 @@ def test_resume_of_a_busy_run_names_the_other_process(xml, tmp_path):
 
 # ------------------------------------------------------------ one source a setting
 def _config(run: Path) -> dict:
-    return json.loads((run / "config.json").read_text())
+    return TrainConfig.load(run / "config.json").flat()
 
 
 def test_the_kernel_of_the_scene_xml_is_trained(tiny, tmp_path):

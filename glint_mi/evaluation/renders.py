@@ -245,5 +245,6 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
                        f"finish saving its model - resume it with `python -m glint_mi.optimize --resume {run}`.")
     props = integrator_props(cfg, components=components, max_hits=max_hits,
                              env_file=str((model / "env.npy").resolve()))
-    scene = mi.load_dict(gaussian_scene_dict(sets, **shape_props(cfg), **props))
+    with glint_mi.deferred_interrupt():  # a Ctrl-C inside the plugins' C++ callbacks prints a traceback
+        scene = mi.load_dict(gaussian_scene_dict(sets, **shape_props(cfg), **props))
     return scene.integrator()

@@ -5,7 +5,6 @@ no-glass decision and build the Mitsuba scene. Each function fills the :class:`~
 it is given (the attributes it documents), so that a notebook still holds one object."""
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
@@ -134,10 +133,13 @@ def build_scene(tr):
     """(Re)create the Mitsuba scene for the current sets (once per run; sizes change through traverse)."""
     import mitsuba as mi
 
+    import glint_mi
+
     # the integrator traces every enabled set for every ray ("all"): its per-ray "auto" skipping folds a skipped
     # weight into k_d, which zeroes the gradient that would let beta (or tau) grow from its initial value
     props = integrator_props(tr.cfg, components="all", aovs=TRAINING_AOVS)
-    tr.scene = mi.load_dict(gaussian_scene_dict(tr.sets, **shape_props(tr.cfg), **props))
+    with glint_mi.deferred_interrupt():  # a Ctrl-C inside the plugins' C++ callbacks prints a traceback
+        tr.scene = mi.load_dict(gaussian_scene_dict(tr.sets, **shape_props(tr.cfg), **props))
     tr.integ = tr.scene.integrator()
     tr.params = mi.traverse(tr.integ)
     c = tr.cfg
@@ -170,7 +172,7 @@ def glass_cue_check(tr) -> None:
         tr.log(f"components auto: drop {role} (its {n} initial Gaussians discarded): {why}")
     profile = tr.components.no_glass_profile() if drops else None
     if profile:
-        tr.cfg = dataclasses.replace(tr.cfg, **profile)
+        tr.cfg = tr.cfg.replace(**profile)
         tr.strategy.cfg = tr.components.cfg = tr.cfg
         tr.cfg.save(tr.run_dir / "config.json")
         tr.report["no_glass"] = profile
@@ -202,7 +204,7 @@ def load_checkpoint(tr):
     tr.rng.bit_generator.state = json.loads(str(z["rng"]))
     tr.report = json.loads(str(z["report"]))
     if tr.report.get("no_glass"):  # dropped before training: it trained as 3DGS, whatever config resumes it
-        tr.cfg = dataclasses.replace(tr.cfg, **tr.report["no_glass"])
+        tr.cfg = tr.cfg.replace(**tr.report["no_glass"])
     tr.components = ComponentsPolicy(tr.cfg)
     tr.components.load_state_dict({"dropped": json.loads(str(z["dropped"])),
                                    "decisions": tr.report.get("components", {})})
