@@ -31,8 +31,22 @@ def _quiet_interrupt(kind, value, tb, _previous=sys.excepthook):
     _previous(kind, value, tb)
 
 
+def _interrupt_again(unraisable, _previous=sys.unraisablehook):
+    """A Ctrl-C that lands in a callback Python cannot raise from (an import lock's weakref callback, seen 0.1 s into
+    a command) would print 'Exception ignored ... KeyboardInterrupt' and be lost: deliver it again, to be raised
+    where the command handles it."""
+    if isinstance(unraisable.exc_value, KeyboardInterrupt):
+        import signal
+
+        signal.raise_signal(signal.SIGINT)
+        return
+    _previous(unraisable)
+
+
 if sys.excepthook is sys.__excepthook__:  # leave IPython's and other hosts' hooks alone
     sys.excepthook = _quiet_interrupt
+if sys.unraisablehook is sys.__unraisablehook__:
+    sys.unraisablehook = _interrupt_again
 
 
 @contextlib.contextmanager
