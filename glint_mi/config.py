@@ -18,7 +18,7 @@ from pathlib import Path
 import glint_mi.conventions as cv
 
 PAPER_ITERS = 60_000.0
-# the weighted terms of the objective (glint_mi.training.losses.batch_objective), each switched by its w_<name> weight
+# the weighted terms of the objective (glint_mi.training.objective.TERMS), each switched by its w_<name> weight
 LOSS_NAMES = ("total", "l1", "dssim", "direct", "depth", "sfm_depth", "normal", "consistency", "distortion", "trans",
               "treg", "plausibility")
 

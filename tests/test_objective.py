@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from glint_mi.training import losses as L
+from glint_mi.training import objective as O
 from glint_mi.training.batch import patch_neighbours
 from glint_mi.config import TrainConfig
 
@@ -87,7 +88,7 @@ def test_plausibility_pulls_only_the_transmission_set():
 def _traced_batch(tr, st, need=frozenset()):
     """One ray batch of a trainer's bank traced with the sets the stage ``st`` traces (and the buffer groups in
     ``need``): (batch, rays, camera forward axes, the integrator's buffers), the inputs of
-    ``losses.batch_objective``."""
+    ``objective.batch_objective``."""
     c = tr.cfg
     tr.integ.select(st["traced"])
     b = tr.bank.sample(np.random.default_rng(0), c.patches, c.patch)
@@ -170,7 +171,6 @@ def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
     import drjit as dr
     import mitsuba as mi
 
-    from glint_mi.training import losses as L
     from glint_mi.methods import config_for
     from glint_mi.training.trainer import Trainer
 
@@ -196,7 +196,7 @@ def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
     st = tr.stage()
     b, ray, fwd, out = _traced_batch(tr, st)
     rng = np.random.default_rng(1)
-    value = lambda o: L.batch_objective(c, b, o, st, ray, fwd, len(tr.bank.views), tr.extent)[0]["consistency"]
+    value = lambda o: O.batch_objective(c, b, o, st, ray, fwd, len(tr.bank.views), tr.extent)[0]["consistency"]
     base = value(out)
     bumped = lambda k: {**out, k: out[k] * mi.Float(1 + 0.05 * rng.standard_normal(dr.width(out[k])))}
     assert abs(value(bumped("median")) - base) > 1e-4 * max(base, 1e-3)
@@ -258,7 +258,7 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
 
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["depth"] and st["normal"]
-    terms = lambda s: L.batch_objective(c, b, out, {**st, "prior_scale": s}, ray, fwd, len(tr.bank.views),
+    terms = lambda s: O.batch_objective(c, b, out, {**st, "prior_scale": s}, ray, fwd, len(tr.bank.views),
                                         tr.extent)[0]
     full = terms(1.0)
     assert full["depth"] > 0 and full["normal"] > 0
@@ -321,7 +321,7 @@ def test_prior_layer_nearer_in_the_objective(tmp_path):
     def terms(layer, t):
         cfg = TrainConfig.for_preset("tiny", iterations=200, components="all", prior_layer=layer)
         o = {**out, "transparency": mi.Float(np.full(n, t, np.float32))}
-        return L.batch_objective(cfg, b, o, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
+        return O.batch_objective(cfg, b, o, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
 
     for key in ("depth", "normal"):
         assert terms("nearer", 0.0)[key] == pytest.approx(terms("interface", 0.0)[key], rel=1e-6)
@@ -385,7 +385,7 @@ def test_device_statistics_equal_numpy_and_are_read_only_when_asked(tmp_path):
     assert set(got) == set(ref) and ref["share_reflection"] > 0 and ref["gap_behind"] + ref["gap_front"] > 0
     for k in ref:
         assert got[k] == pytest.approx(ref[k], rel=1e-4, abs=1e-7), k
-    terms, _, stats = L.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent, read=False)
+    terms, _, stats = O.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent, read=False)
     assert all(isinstance(terms[k], dr.ArrayBase) for k in ("total", "l1", "dssim", "trans"))
     assert isinstance(stats["share_reflection"], dr.ArrayBase) and isinstance(stats["mask_t"], dr.ArrayBase)
     read = L.read_values(terms)
@@ -442,7 +442,7 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
     c = TrainConfig.for_preset("tiny", iterations=200, components="interface", normal_weight="uniform")
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["normal"] and st["consistency"]
-    run = lambda cfg: L.batch_objective(cfg, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)
+    run = lambda cfg: O.batch_objective(cfg, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)
     (tu, au, _), (tn, an, _) = run(c), run(dataclasses.replace(c, normal_weight="near"))
     for k in ("normal", "consistency"):
         assert 0 < tn[k] < tu[k]
@@ -465,3 +465,28 @@ def test_near_weight_is_the_release_depth_scale_and_gates_the_normal_terms(tmp_p
         assert config_for(name, "tiny").normal_weight == want, name
     with pytest.raises(ConfigError, match="'normal_weight' = 'far'"):
         TrainConfig.for_preset("tiny", normal_weight="far")
+
+
+def test_the_objective_is_its_table_of_terms(tmp_path, monkeypatch):
+    """Issue 64: the loss terms are rows of objective.TERMS (name, weight field, schedule field, buffers read,
+    function); every LOSS_NAMES entry has a row, every weight is a field of the losses layer, every start one of the
+    schedule layer, and the total is the sum of the rows that run (a table of two terms gives their sum). The table
+    replaced a chain of ifs; the terms, adjoints and statistics were compared bit for bit with it on glint,
+    glint-paper, 2dgs, tsgs (given masks) and 3dgs-priors at three stages (2026-11-28, in the closing note)."""
+    from glint_mi.config import FIELD_LAYER, LOSS_NAMES
+    from glint_mi.model.render import AOV_GROUPS
+    from glint_mi.training import objective
+
+    assert {t.name for t in objective.TERMS} == set(LOSS_NAMES) - {"total"}
+    for t in objective.TERMS:
+        assert FIELD_LAYER[t.weight] == "losses", t
+        assert t.starts is None or FIELD_LAYER[t.starts] == "schedule", t
+        assert set(t.needs) <= set(AOV_GROUPS) | {"median", "distortion"}, t
+    c = TrainConfig.for_preset("tiny", components="all", trans_albedo="masks")
+    tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.5)
+    full = objective.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
+    assert full["total"] == pytest.approx(sum(v for k, v in full.items() if k != "total"), rel=1e-5)
+    two = [t for t in objective.TERMS if t.name in ("l1", "dssim")]
+    monkeypatch.setattr(objective, "TERMS", tuple(two))
+    part = objective.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
+    assert part["total"] == pytest.approx(full["l1"] + full["dssim"], rel=1e-6) and part["depth"] == 0.0

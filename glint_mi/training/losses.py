@@ -1,5 +1,5 @@
-"""GLINT's losses, transparency-bootstrapping masks and their assembly into one batch objective (glint-method.md
-sections 3 and 4).
+"""GLINT's losses and transparency-bootstrapping masks (glint-method.md sections 3 and 4); their assembly into one
+batch objective is the table of terms in :mod:`glint_mi.training.objective`.
 
 Differentiable terms take Dr.Jit arrays over a batch of rays, with ``view`` [M] the image each ray belongs to (the
 scale-shift fit of the depth loss is per image). L_trans's masks are computed without gradient on the batch's
@@ -12,7 +12,6 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from glint_mi.config import LOSS_NAMES
 
 
 def depth_fit(depth, prior, mask, view, n_views: int):
@@ -245,138 +244,6 @@ def _leaf(x):
     y = type(x)(dr.detach(x))
     dr.enable_grad(y)
     return y
-
-
-def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: float, read: bool = True):
-    """The training objective on one ray batch (glint-method.md section 3): every term that the stage ``st``
-    switches on, weighted by the config ``c``, on the buffers ``out`` traced for the batch ``b``.
-
-    Returns (terms: weighted value per name of LOSS_NAMES, adjoints: per traced buffer, for the integrator's
-    replay, stats: L_trans mask coverage and each component's share of the image energy, and with ``t_raise:
-    masks`` the rays where t may rise, for the replay).
-
-    The terms and the statistics are reduced on the device. ``read`` (default) returns them as floats; with
-    ``read=False`` they stay width-1 Dr.Jit arrays, scheduled for the next evaluation (the backward's), so a training
-    step reads nothing back until it is logged (:func:`read_values`)."""
-    from glint_mi.training.batch import DeviceBatch, device_neighbours, to_device
-
-    if not isinstance(b, DeviceBatch):
-        b = to_device(b)
-    p = b.patch
-    nb = device_neighbours(b.patches, p)  # made once per batch shape
-    gt = b.rgb
-    terms = {k: 0.0 for k in LOSS_NAMES}
-    stats = {}
-    with dr.resume_grad():
-        rgb = _leaf(mi.Color3f(out["rgb"]))
-        depth, normal, t = _leaf(out["depth"]), _leaf(out["normal"]), _leaf(out["transparency"])
-        leaves = {"rgb": rgb, "depth": depth, "normal": normal, "transparency": t}
-        A = dr.detach(out["alpha"])
-        parts = {"l1": c.w_l1 * l1(rgb, gt), "dssim": c.w_dssim * dssim(rgb, gt, p)}
-        # the release's depth scale, from the interface's depth: on the consistency (near, near_consistency) and on
-        # the normal prior (near only; under near_consistency the prior keeps every pixel)
-        near_c, near_p = c.normal_weight in ("near", "near_consistency"), c.normal_weight == "near"
-        w_near = near_weight(out["depth"], A > 0.5) if (near_c and st["consistency"]) or (
-            near_p and st["normal"]) else None
-        if st["consistency"]:
-            if c.consistency_depth == "median":  # 2DGS: normals of the median depth (where T falls to 0.5)
-                dist = leaves["median"] = _leaf(out["median"])
-            else:
-                dist = depth / dr.dot(ray.d, fwd)
-            parts["consistency"] = c.w_consistency * depth_normal_consistency(
-                ray.o, ray.d, dist, normal, A > 0.5, nb, w_near)
-        if st.get("distortion"):  # 2DGS's depth distortion of the interface's hits, mean over the rays
-            leaves["distortion"] = _leaf(out["distortion"])
-            parts["distortion"] = c.w_dist * dr.mean(leaves["distortion"])
-        out_depth = depth  # the interface's planar depth (the depth term below may work in 1 / depth)
-        if "transmission" in st["traced"]:
-            Dc, Dd, Dn, DA = out["trans_direct"]
-            Dc, Dd, Dn, DA = _leaf(mi.Color3f(Dc)), _leaf(Dd), _leaf(Dn), _leaf(DA)
-            leaves["trans_direct"] = (Dc, Dd, Dn, DA)
-        # prior_layer: nearer - where the interface is transparent the priors may describe the transmitted surface
-        behind_ok = None
-        if c.prior_layer == "nearer" and "transmission" in st["traced"]:
-            behind_ok = (dr.detach(t) > 0.5) & (dr.detach(DA) > 0.5) & (dr.detach(Dd) > 0)
-        # the prior terms' schedule (prior_decay): an opaque scalar, so the kernels stay the same while it falls
-        prior_w = dr.opaque(mi.Float, st.get("prior_scale", 1.0)) if c.prior_decay < 1.0 else 1.0
-        if st["depth"]:
-            prior = b.depth_prior
-            mask = (prior > 0) & (A > 0.5)
-            d_behind = Dd if behind_ok is not None else None
-            if b.depth_inverse:  # a disparity prior (MiDaS, Depth Anything): the fit is affine in 1 / depth
-                mask &= depth > 1e-6
-                depth = 1.0 / dr.maximum(depth, 1e-6)
-                if d_behind is not None:
-                    d_behind = 1.0 / dr.maximum(d_behind, 1e-6)
-            behind = (d_behind, behind_ok) if d_behind is not None else None
-            if c.depth_align in ("sfm", "image") and b.depth_affine is not None:
-                w_v, q_v = b.depth_affine
-                fit = dr.isfinite(w_v)  # views without a fit keep the per-batch fit
-                vid = dr.select(fit, n_views, b.view)  # fitted views: a spare slot
-                w_b, q_b = depth_fit(depth, prior, mask & ~fit, vid, n_views + 1)
-                parts["depth"] = c.w_depth * prior_w * depth_loss_aligned(
-                    depth, prior, mask, dr.select(fit, w_v, w_b), dr.select(fit, q_v, q_b), behind)
-            else:
-                parts["depth"] = c.w_depth * prior_w * depth_loss(depth, prior, mask, b.view, n_views, behind)
-        if st["sfm_depth"] and b.sfm_depth is not None:
-            z = b.sfm_depth
-            m = (z > 0) & (A > 0.5)
-            r = dr.select(m, dr.abs(out_depth - z) / dr.maximum(z, 1e-6), 0.0)
-            parts["sfm_depth"] = c.w_sfm_depth * dr.sum(r) / dr.maximum(dr.count(m), 1)
-        if st["normal"]:
-            axes = b.axes
-            n_cv = mi.Vector3f(dr.dot(axes[0], normal), dr.dot(axes[1], normal), dr.dot(axes[2], normal))
-            prior = b.normal_prior
-            valid = (dr.squared_norm(prior) > 0.25) & (A > 0.5)
-            behind = None
-            if behind_ok is not None:
-                behind = (mi.Vector3f(dr.dot(axes[0], Dn), dr.dot(axes[1], Dn), dr.dot(axes[2], Dn)), behind_ok)
-            parts["normal"] = c.w_normal * prior_w * normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
-                                                                 st["normal_masked"], behind,
-                                                                 w_near if near_p else None)[0]
-        if "transmission" in st["traced"]:
-            if st["direct"]:
-                parts["direct"] = c.w_direct * (c.w_l1 * l1(Dc, gt) + c.w_dssim * dssim(Dc, gt, p))
-                if st["consistency"]:  # (near, near_consistency: the release scales it by G_trans's own depth)
-                    w_t_near = near_weight(Dd, dr.detach(DA) > 0.5) if near_c else None
-                    parts["consistency"] = parts.get("consistency", 0.0) + c.w_consistency * \
-                        depth_normal_consistency(ray.o, ray.d, Dd / dr.dot(ray.d, fwd), Dn,
-                                                 dr.detach(DA) > 0.5, nb, w_t_near)
-            need_masks = st["plausibility"] and c.plausibility_mask == "opaque"
-            if (st["trans"] and c.trans_masks == "depth_gap") or need_masks:
-                w_t, w_o, stats["mask_t"], allowed = batch_transparency_masks(c, b, out, extent, st["t_gate"])
-                stats.update(depth_gap_stats(c, out, extent))
-                if st["trans"] and c.trans_masks == "depth_gap":
-                    parts["trans"] = c.w_trans * (bce(t, 0.98, w_t) + bce(t, 0.02, w_o))
-                if st["t_gate"]:  # t_raise: masks - nothing may raise t where the gate's opaque votes fall (replay)
-                    stats["t_raise"] = allowed
-            if st["plausibility"]:
-                w_p = w_o if need_masks else plausibility_weight(t, A, c.trans_min_alpha)
-                parts["plausibility"] = c.w_plausibility * plausibility(
-                    Dd, out["depth"], Dn, out["normal"], w_p, extent)
-            if st["treg"]:
-                parts["treg"] = c.w_treg * transparency_regulariser(t, photo_edges(gt, nb) * 10.0, nb)
-        if st["trans"] and c.trans_masks in ("gt", "prior"):  # TSGS: supervised by given glass masks
-            g = b.glass > 0.5
-            w_t, w_o = (dr.select(erode_blocks(m, p, p), 1.0, 0.0) for m in (g, ~g))
-            stats["mask_t"] = mi.Float(dr.count(w_t > 0)) / dr.width(w_t)
-            parts["trans"] = c.w_trans * (bce(t, 0.98, w_t) + bce(t, 0.02, w_o))
-        total = sum(parts.values())
-        dr.backward(total)
-        adjoints = {}
-        for k, v in leaves.items():
-            adjoints[k] = tuple(dr.grad(x) for x in v) if isinstance(v, tuple) else dr.grad(v)
-        for k, v in parts.items():
-            terms[k] = dr.detach(v)
-        terms["total"] = dr.detach(total)
-    stats.update(component_stats(out, gt))  # what each component contributes (evidence for components: auto)
-    values = {**terms, **{k: v for k, v in stats.items() if k != "t_raise"}}
-    if read:
-        for k, v in read_values(values).items():
-            (terms if k in terms else stats)[k] = v
-    else:
-        dr.schedule(*[v for v in values.values() if isinstance(v, dr.ArrayBase)])
-    return terms, adjoints, stats
 
 
 def read_values(values: dict) -> dict:

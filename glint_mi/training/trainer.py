@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-import glint_mi.training.losses as L
+import glint_mi.training.objective as objective
 from glint_mi.config import TrainConfig
 from glint_mi.model.render import floats
 from glint_mi.runs import load_run_dataset
@@ -224,8 +224,8 @@ class Trainer:
             dr.eval(out["passes"], out.get("hit_lists"))
         full = budget_full(out, c.max_hits, read=read)
         with phase("objective"):
-            terms, adjoints, stats = L.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views), self.extent,
-                                                       read=read)
+            terms, adjoints, stats = objective.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views),
+                                                               self.extent, read=read)
         with phase("backward"):
             self.integ.backward(ray, active, out, adjoints, forward=fwd, t_raise=stats.pop("t_raise", None))
             dr.eval()  # run the replay now (the gradients are read next anyway): its time is the backward's
@@ -246,7 +246,7 @@ class Trainer:
         for row in rows:
             dev = {k: v for k, v in row.items() if isinstance(v, dr.ArrayBase)}
             if dev:
-                row.update(L.read_values(dev))
+                row.update(objective.read_values(dev))
 
     def _count_nonfinite(self):
         """update: device counts the non-finite gradient entries it zeroes on the device; read them here (the host
