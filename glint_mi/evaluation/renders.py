@@ -243,7 +243,7 @@ def load_model(run: str | Path, cfg, max_hits: int | None = None, components: st
 
         raise RunError(f"{model / 'env.npy'}: a refgs model needs its directional grid; the run did not "
                        f"finish saving its model - resume it with `python -m glint_mi.optimize --resume {run}`.")
-    props = integrator_props(cfg, components=components, max_hits=max_hits,
+    props = integrator_props(cfg.render, components=components, max_hits=max_hits,
                              env_file=str((model / "env.npy").resolve()))
     with glint_mi.deferred_interrupt():  # a Ctrl-C inside the plugins' C++ callbacks prints a traceback
         scene = mi.load_dict(gaussian_scene_dict(sets, **shape_props(cfg), **props))

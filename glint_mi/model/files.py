@@ -10,11 +10,13 @@ from xml.sax.saxutils import quoteattr
 TRAINING_AOVS = "depth,normal,transparency,interface,alpha,weights"
 
 
-def integrator_props(cfg, components: str = "all", max_hits: int | None = None, env_file: str | None = None,
+def integrator_props(render, components: str = "all", max_hits: int | None = None, env_file: str | None = None,
                      aovs: str | None = None) -> dict:
-    """The glint integrator's properties for a run configured as ``cfg``: ``components`` (``all``, the exact model
-    training and evaluation use; ``auto`` or a list trade accuracy for speed), ``max_hits`` (default the run's),
-    ``env_file`` (refgs: the saved directional grid; training pushes its own), ``aovs`` (training's buffers)."""
+    """The glint integrator's properties from a run's ``render`` layer (a whole TrainConfig reads through):
+    ``components`` (``all``, the exact model training and evaluation use; ``auto`` or a list trade accuracy for
+    speed), ``max_hits`` (default the run's), ``env_file`` (refgs: the saved directional grid; training pushes its
+    own), ``aovs`` (training's buffers)."""
+    cfg = render
     props = {"components": components, "max_order": cfg.max_order,
              "max_hits": cfg.max_hits if max_hits is None else max_hits, "blend": cfg.blend,
              "traversal": cfg.traversal}

@@ -137,7 +137,7 @@ def build_scene(tr):
 
     # the integrator traces every enabled set for every ray ("all"): its per-ray "auto" skipping folds a skipped
     # weight into k_d, which zeroes the gradient that would let beta (or tau) grow from its initial value
-    props = integrator_props(tr.cfg, components="all", aovs=TRAINING_AOVS)
+    props = integrator_props(tr.cfg.render, components="all", aovs=TRAINING_AOVS)
     with glint_mi.deferred_interrupt():  # a Ctrl-C inside the plugins' C++ callbacks prints a traceback
         tr.scene = mi.load_dict(gaussian_scene_dict(tr.sets, **shape_props(tr.cfg), **props))
     tr.integ = tr.scene.integrator()

@@ -23,7 +23,7 @@ __all__ = ["Inputs", "Term", "TERMS", "batch_objective", "read_values"]  # read_
 
 @dataclasses.dataclass
 class Inputs:
-    """What the terms of one batch share: the config ``c``, the batch ``b`` (its photos and priors), the traced
+    """What the terms of one batch share: the losses layer ``c``, the batch ``b`` (its photos and priors), the traced
     buffers ``out`` and their differentiable leaves, the stage ``st``, and values several terms read."""
 
     c: object
@@ -211,7 +211,8 @@ TERMS = (
 
 def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: float, read: bool = True):
     """The training objective on one ray batch: every term of :data:`TERMS` that the stage ``st`` switches on,
-    weighted by the config ``c``, on the buffers ``out`` traced for the batch ``b``.
+    weighted by ``c``, the config's ``losses`` layer (every field the terms read is there; a whole TrainConfig reads
+    through), on the buffers ``out`` traced for the batch ``b``.
 
     Returns (terms: weighted value per name of LOSS_NAMES, adjoints: per traced buffer, for the integrator's
     replay, stats: L_trans mask coverage and each component's share of the image energy, and with ``t_raise:

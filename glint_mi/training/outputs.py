@@ -100,7 +100,7 @@ def save_model(tr) -> Path:
         np.save(buf, tr.integ.env.numpy())  # what _push_env last sent: tr.env as [h, w, 3]
         atomic_write_bytes(model / "env.npy", buf.getvalue())
     props = {"dataset": str(tr.ds.root.resolve()),
-             **integrator_props(tr.cfg, components="all", env_file="env.npy")}
+             **integrator_props(tr.cfg.render, components="all", env_file="env.npy")}
     xml = model_xml(props, list(sets), shape_props(tr.cfg), sensor_xml(Camera.from_view(v), 1),
                     f"trained by glint_mi ({tr.it} iterations); render with mitsuba or python -m "
                     f"glint_mi.evaluate")

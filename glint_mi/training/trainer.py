@@ -224,7 +224,7 @@ class Trainer:
             dr.eval(out["passes"], out.get("hit_lists"))
         full = budget_full(out, c.max_hits, read=read)
         with phase("objective"):
-            terms, adjoints, stats = objective.batch_objective(c, b, out, st, ray, fwd, len(self.bank.views),
+            terms, adjoints, stats = objective.batch_objective(c.losses, b, out, st, ray, fwd, len(self.bank.views),
                                                                self.extent, read=read)
         with phase("backward"):
             self.integ.backward(ray, active, out, adjoints, forward=fwd, t_raise=stats.pop("t_raise", None))
