@@ -345,7 +345,8 @@ class TrainConfig:
         overrides = flatten(overrides)
         if "iterations" in overrides and "epochs" not in overrides:  # an explicit count is a fixed budget
             overrides = {**overrides, "epochs": 0.0}
-        values = {**PRESETS[preset], **VARIANTS[variant], "preset": preset, "variant": variant, **overrides}
+        values = {**flatten(PRESETS[preset]), **flatten(VARIANTS[variant]), "preset": preset, "variant": variant,
+                  **overrides}
         return cls.from_dict(values)
 
     @classmethod
@@ -543,6 +544,11 @@ def flatten(values: dict, source: str = "config") -> dict:
     return out
 
 
+def by_path(values: dict) -> dict:
+    """``values`` keyed by path (``losses.w_normal``): how presets, variants and methods name what they override."""
+    return {f"{FIELD_LAYER[k]}.{k}": v for k, v in flatten(values).items()}
+
+
 def migrate(values: dict) -> dict:
     """A saved config's values in today's fields (:data:`MIGRATIONS`, in order)."""
     for _, applies, change in MIGRATIONS:
@@ -600,4 +606,6 @@ VARIANTS = {
 }
 
 
+PRESETS = {name: by_path(values) for name, values in PRESETS.items()}  # what each overrides, by path
+VARIANTS = {name: by_path(values) for name, values in VARIANTS.items()}
 _DEFAULTS = TrainConfig()  # each field's type, for from_dict's checks

@@ -46,9 +46,10 @@ class Method:
     differs: str = ""
 
     def __post_init__(self):
-        from glint_mi.config import TrainConfig
+        from glint_mi.config import TrainConfig, by_path
 
         TrainConfig.from_dict(self.overrides, source=f"method '{self.name}'")  # raises ConfigError, naming the key
+        object.__setattr__(self, "overrides", by_path(self.overrides))  # what it overrides, by path (layer.field)
 
 
 METHODS = {m.name: m for m in [
@@ -130,8 +131,9 @@ TABLE_METHODS = ("3dgs", "2dgs", "pgsr", "envgs", "refgs", "tsgs", "glint")
 
 
 def config_for(method: str, preset: str, variant: str | None = None, **extra):
-    from glint_mi.config import DEFAULT_VARIANT, ConfigError, TrainConfig
+    from glint_mi.config import DEFAULT_VARIANT, ConfigError, TrainConfig, flatten
 
     if method not in METHODS:
         raise ConfigError(f"unknown method '{method}'; use one of {sorted(METHODS)}.")
-    return TrainConfig.for_preset(preset, variant or DEFAULT_VARIANT, **{**METHODS[method].overrides, **extra})
+    return TrainConfig.for_preset(preset, variant or DEFAULT_VARIANT,
+                                  **{**flatten(METHODS[method].overrides), **flatten(extra)})

@@ -12,7 +12,7 @@ import pytest
 from conftest import KBUFFER
 from glint_mi.data import load_dataset
 from glint_mi.dataset.generate import Preset, make_scene
-from glint_mi.config import TrainConfig
+from glint_mi.config import TrainConfig, flatten
 from glint_mi.methods import METHODS, config_for
 from glint_mi.scene import read_scene
 from glint_mi.training.trainer import Trainer
@@ -25,8 +25,9 @@ ROOT = Path(__file__).resolve().parent.parent
 def test_methods_are_configurations():
     for name, m in METHODS.items():
         cfg = config_for(name, "tiny")
-        for k, v in m.overrides.items():
-            assert getattr(cfg, k) == v, (name, k)
+        for path, v in m.overrides.items():  # by path: layer.field
+            layer, k = path.split(".")
+            assert getattr(getattr(cfg, layer), k) == v, (name, path)
     assert config_for("3dgs", "tiny").kernel == "ellipsoid" and config_for("envgs", "tiny").blend == "envgs"
     # a method is checked when it is defined, not when it first runs
     from glint_mi.config import ConfigError
@@ -73,7 +74,7 @@ def test_benchmark_tiny(tmp_path):
     for method, sets in (("2dgs", {"interface"}), ("envgs", {"interface", "reflection"})):
         run = out / "runs" / "scene_000" / method
         cfg = TrainConfig.load(run / "config.json").flat()
-        for k, v in METHODS[method].overrides.items():
+        for k, v in flatten(METHODS[method].overrides).items():
             assert cfg[k] == v, (method, k)
         assert set(json.loads((run / "report.json").read_text())["sizes"]) == sets
     # --set reaches every method: convergence curves at 6 and 12 iterations

@@ -68,3 +68,10 @@ def test_fields_by_path():
         TrainConfig.for_preset("tiny", w_norml=0.1)
     again = cfg.replace(**{"losses.w_normal": 0.2})
     assert again.w_normal == 0.2 and cfg.w_normal == 0.05  # a checked copy
+    # presets, schedule variants and methods say what they override by path
+    from glint_mi.config import PRESETS, VARIANTS
+    from glint_mi.methods import METHODS
+
+    for what in (*PRESETS.values(), *VARIANTS.values(), *(m.overrides for m in METHODS.values())):
+        assert all(k.split(".")[0] in LAYERS for k in what), what
+    assert METHODS["3dgs"].overrides["model.kernel"] == "ellipsoid" and PRESETS["tiny"]["run.iterations"] == 300

@@ -484,6 +484,7 @@ def test_the_objective_is_its_table_of_terms(tmp_path, monkeypatch):
         assert set(t.needs) <= set(AOV_GROUPS) | {"median", "distortion"}, t
     c = TrainConfig.for_preset("tiny", components="all", trans_albedo="masks")
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.5)
+    assert st["l1"] and st["dssim"]  # the stage switches on a term it has no rule for while it is weighted
     full = objective.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
     assert full["total"] == pytest.approx(sum(v for k, v in full.items() if k != "total"), rel=1e-5)
     two = [t for t in objective.TERMS if t.name in ("l1", "dssim")]

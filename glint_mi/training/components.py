@@ -66,9 +66,10 @@ class ComponentsPolicy:
         c = self.cfg
         if c.no_glass not in ("3dgs", "3dgs+sfm"):
             return None
+        from glint_mi.config import flatten
         from glint_mi.methods import METHODS
 
-        m = METHODS["3dgs"].overrides
+        m = flatten(METHODS["3dgs"].overrides)
         # blend: with both extra sets gone GLINT's Fresnel weights give everything to the diffuse term, the same
         # image as plain alpha compositing up to float rounding; the 3dgs blend makes it bit for bit the 3dgs method
         fields = ("kernel", "blend", "w_l1", "w_dssim", "w_consistency", "normal_weight") + (

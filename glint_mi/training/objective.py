@@ -2,7 +2,8 @@
 config field that weighs it, the schedule field it starts at, the buffers it reads and the function that computes it
 on one ray batch. :func:`batch_objective` builds what the terms share (:class:`Inputs`), runs the terms the stage
 switches on in the table's order and returns their values and the adjoints of the traced buffers. A new term is a
-function here, a row of :data:`TERMS`, its weight in the config's ``losses`` layer and its name in ``LOSS_NAMES``.
+function and a row of :data:`TERMS` here, its weight field in the config's ``losses`` layer and its name in
+``LOSS_NAMES`` (config.py); the trainer's stage switches it on while weighted, from its schedule field.
 
 The terms' math is in :mod:`glint_mi.training.losses`.
 """

@@ -162,7 +162,7 @@ class Trainer:
             trained.discard("interface")  # supplement: the interface is frozen in the refine stage
         has_t = "transmission" in traced
         gt_masks = c.trans_masks in ("gt", "prior")  # masks given from outside (TSGS)
-        return {"traced": traced, "trained": trained, "name": "warm-up" if traced == {"interface"} and not on(c.warmup)
+        st = {"traced": traced, "trained": trained, "name": "warm-up" if traced == {"interface"} and not on(c.warmup)
                 else ("refine" if "interface" not in trained else "joint"),
                 "depth": c.w_depth > 0 and "depth" in self.bank.has,
                 "sfm_depth": c.w_sfm_depth > 0 and self.bank.sfm_depth is not None,
@@ -185,6 +185,10 @@ class Trainer:
                 "t_gate": (has_t and c.t_raise == "masks" and c.trans_masks == "depth_gap" and c.w_trans > 0
                            and on(max(c.trans_from, c.densify_until))),
                 "sh_degree": min(c.sh_degree, it // c.every(c.sh_every))}
+        for term in objective.TERMS:  # a term without a rule above: on while weighted, from its schedule field
+            starts = term.starts is None or on(getattr(c, term.starts))
+            st.setdefault(term.name, getattr(c, term.weight) > 0 and starts)
+        return st
 
     def render_depth(self, flat: np.ndarray, vid: np.ndarray):
         """The interface's planar depth and accumulated alpha at training pixels (``flat`` rows of the bank, their
