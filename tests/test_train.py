@@ -548,11 +548,11 @@ def test_epochs_budget_sets_iterations(room, tmp_path):
     want = math.ceil(3.0 * px / 256)
     assert cfg.with_budget(px).iterations == want and cfg.iterations != want
     tr = Trainer(tmp_path / "e", cfg, scene=spec, log=lambda *a: None)
-    assert tr.cfg.iterations == want and tr.strategy.cfg.iterations == want
+    assert tr.cfg.iterations == want and tr.strategy.iterations == want
     assert TrainConfig.load(tmp_path / "e" / "config.json").iterations == want
     tr.save_checkpoint()
     again = Trainer(tmp_path / "e", cfg, resume=True, log=lambda *a: None)
-    assert again.cfg.iterations == want and again.strategy.cfg.iterations == want
+    assert again.cfg.iterations == want and again.strategy.iterations == want
     # half-resolution training: a quarter of the pixels, so a quarter of the rays for the same epochs
     half = Trainer(tmp_path / "h", tiny_cfg(epochs=3.0, patches=4, downscale=2), scene=spec,
                    log=lambda *a: None)

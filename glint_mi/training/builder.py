@@ -55,7 +55,9 @@ def assemble(tr, resume: bool) -> None:
     tr.bank = training_inputs(tr.ds, cfg, "transmission" in tr.sets, tr.report, tr.log,
                               getattr(tr, "_resume_affine", None))  # set by _load_checkpoint only
     if not resume:
-        glass_cue_check(tr)
+        glass_cue_check(tr)  # may give the run the 3dgs profile (another kernel): the strategy is built after it
+        tr.strategy = Strategy(tr.cfg.densify, tr.extent, np.random.default_rng([tr.cfg.seed, 1]),  # own stream
+                               kernel=tr.cfg.kernel, iterations=tr.cfg.iterations)
     from glint_mi.data.priors import priors_are_derived
 
     tr.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(tr.ds.root))
@@ -64,8 +66,9 @@ def assemble(tr, resume: bool) -> None:
 
 def fresh(tr):
     """A new run: the dataset read and checked (priors, the scene's settings, the patch size) before anything is
-    written, the initial sets, Adam, the strategy and the components policy; then the lock and config.json /
-    run.json (tr: ds, sets, bounds, extent, report['init'], env, adam, strategy, components)."""
+    written, the initial sets, Adam and the components policy; then the lock and config.json / run.json (tr: ds,
+    sets, bounds, extent, report['init'], env, adam, components). The strategy comes after the no-glass decision
+    (:func:`assemble`)."""
     if tr.scene_spec is None:
         raise RunError("a new run needs an optimisation scene (python -m glint_mi.scene DATASET > scene.xml).")
     if tr.ds is None:
@@ -93,7 +96,6 @@ def fresh(tr):
     if tr.cfg.blend == "refgs":
         refgs_start(tr)
     tr.adam = Adam(learning_rates(tr), eps=tr.cfg.adam_eps, selective=tr.cfg.adam == "selective")
-    tr.strategy = Strategy(tr.cfg, tr.extent, np.random.default_rng([tr.cfg.seed, 1]))  # own stream
     tr.components = ComponentsPolicy(tr.cfg)
     tr.report["components"] = tr.components.decisions
     tr._lock = hold_run(tr.run_dir)  # before anything is written (creates the folder)
@@ -172,8 +174,9 @@ def glass_cue_check(tr) -> None:
         tr.log(f"components auto: drop {role} (its {n} initial Gaussians discarded): {why}")
     profile = tr.components.no_glass_profile() if drops else None
     if profile:
+        # the components policy reads none of the profile's fields (kernel, blend, weights), and the strategy is
+        # built after this decision: nothing holds the former config
         tr.cfg = tr.cfg.replace(**profile)
-        tr.strategy.cfg = tr.components.cfg = tr.cfg
         tr.cfg.save(tr.run_dir / "config.json")
         tr.report["no_glass"] = profile
         said = ", ".join(f"{k}={v}" for k, v in profile.items())
@@ -221,7 +224,7 @@ def load_checkpoint(tr):
         tr.env_adam = (z["env_adam/m"].copy(), z["env_adam/v"].copy(), z["env_adam/n"].copy())
     srng = np.random.default_rng()
     srng.bit_generator.state = json.loads(str(z["strategy_rng"]))
-    tr.strategy = Strategy(tr.cfg, tr.extent, srng)
+    tr.strategy = Strategy(tr.cfg.densify, tr.extent, srng, kernel=tr.cfg.kernel, iterations=tr.cfg.iterations)
     tr.strategy.load_state_dict({k[9:]: v for k, v in z.items() if k.startswith("strategy/")})
     tr.log(f"resumed {tr.run_dir} at iteration {tr.it}")
 

@@ -28,8 +28,15 @@ class Event:
 class Strategy:
     """Clone / split on accumulated positional gradient, prune by opacity and size, opacity and tau resets."""
 
-    def __init__(self, cfg, extent: float, rng: np.random.Generator):
-        self.cfg, self.extent, self.rng = cfg, float(extent), rng
+    def __init__(self, densify, extent: float, rng: np.random.Generator, kernel: str = "surfel",
+                 iterations: int = 1):
+        """``densify``: the config's densify layer (a whole TrainConfig gives it, with its kernel and iterations);
+        ``kernel`` and ``iterations`` (the run's length, which the schedule's fractions are of) from the model and
+        run layers."""
+        if hasattr(densify, "densify"):  # a TrainConfig
+            densify, kernel, iterations = densify.densify, densify.kernel, densify.iterations
+        self.cfg, self.extent, self.rng = densify, float(extent), rng
+        self.kernel, self.iterations = kernel, int(iterations)
         self.grad_sum: dict[str, np.ndarray] = {}
         self.count: dict[str, np.ndarray] = {}
         self.events: list[Event] = []
@@ -37,16 +44,23 @@ class Strategy:
         self.last_reset = -10 ** 9
 
     # ------------------------------------------------------------- schedule
+    def at(self, fraction: float) -> int:
+        """The iteration at ``fraction`` of the run (as TrainConfig.at)."""
+        return int(round(fraction * self.iterations))
+
+    def every(self, fraction: float) -> int:
+        return max(1, int(round(fraction * self.iterations)))
+
     def densifying(self, it: int) -> bool:
         """Whether iteration ``it``'s gradients feed the densification statistic."""
         c = self.cfg
-        return c.at(c.densify_from) <= it < c.at(c.densify_until)
+        return self.at(c.densify_from) <= it < self.at(c.densify_until)
 
     def due(self, it: int) -> tuple[bool, bool]:
         """(densify, reset): what the structure step after iteration ``it`` does."""
         c, nxt = self.cfg, it + 1
-        reset = c.reset_every > 0 and nxt < c.at(c.densify_until) and nxt % c.every(c.reset_every) == 0
-        densify = self.densifying(it) and nxt % c.every(c.densify_every) == 0 and nxt > c.at(c.densify_from)
+        reset = c.reset_every > 0 and nxt < self.at(c.densify_until) and nxt % self.every(c.reset_every) == 0
+        densify = self.densifying(it) and nxt % self.every(c.densify_every) == 0 and nxt > self.at(c.densify_from)
         return densify, reset
 
     def step_post(self, it: int, sets: dict[str, GaussianSet], roles: list[str], adam, sizes: dict[str, int],
@@ -114,13 +128,13 @@ class Strategy:
             return gset
         a = gset.activated()
         g = self.mean_grad(role)
-        smax = a["scales"][:, :2].max(1) if cfg.kernel == "surfel" else a["scales"].max(1)
+        smax = a["scales"][:, :2].max(1) if self.kernel == "surfel" else a["scales"].max(1)
         room = max(0, cfg.max_gaussians - n - others)
         seen = self.count[role] > 0
         top = np.quantile(g[seen], 1.0 - cfg.densify_top) if seen.any() else np.inf
         # Right after an opacity reset (to 0.01) every Gaussian is below a paper-style threshold (0.05): for half a
         # reset interval at most 3DGS's 0.005 applies, so that opacities can recover before they are judged.
-        grace = it - self.last_reset < max(1, cfg.every(cfg.reset_every) // 2) if cfg.reset_every > 0 else False
+        grace = it - self.last_reset < max(1, self.every(cfg.reset_every) // 2) if cfg.reset_every > 0 else False
         thresh = min(cfg.prune_opacity, 0.005) if grace else cfg.prune_opacity
         alive = a["opacity"] >= thresh  # a Gaussian about to be pruned is not densified
         floor = self.floor() if floor is None else floor
@@ -132,7 +146,7 @@ class Strategy:
         # split: two children sampled from the parent, scales / 1.6 (3DGS); the parent is removed
         rot = _rotation_matrices(a["quats_xyzw"][split])
         sc = a["scales"][split].copy()
-        if cfg.kernel == "surfel":
+        if self.kernel == "surfel":
             sc[:, 2] = 0.0
         children = []
         for _ in range(2):
