@@ -21,7 +21,17 @@ from glint_mi.scene import check_settings, initial_sets, read_scene
 from glint_mi.training.components import ComponentsPolicy
 from glint_mi.training.inputs import training_inputs
 from glint_mi.training.optim import RAW_FIELDS, Adam
+from glint_mi.training.refgs import DirectionalGridPart
 from glint_mi.training.strategy import Strategy
+
+
+# a method's own training parts (each says whether a config asks for it): Ref-GS's directional grid
+PARTS = (DirectionalGridPart,)
+
+
+def parts_for(cfg) -> list:
+    """The parts a run configured as ``cfg`` trains beside its sets."""
+    return [part() for part in PARTS if part.applies(cfg)]
 
 
 def check_patch(cfg, ds) -> None:
@@ -67,7 +77,7 @@ def assemble(tr, resume: bool) -> None:
 def fresh(tr):
     """A new run: the dataset read and checked (priors, the scene's settings, the patch size) before anything is
     written, the initial sets, Adam and the components policy; then the lock and config.json / run.json (tr: ds,
-    sets, bounds, extent, report['init'], env, adam, components). The strategy comes after the no-glass decision
+    sets, bounds, extent, report['init'], parts, adam, components). The strategy comes after the no-glass decision
     (:func:`assemble`)."""
     if tr.scene_spec is None:
         raise RunError("a new run needs an optimisation scene (python -m glint_mi.scene DATASET > scene.xml).")
@@ -92,9 +102,9 @@ def fresh(tr):
     tr.bounds = (lo, hi)
     tr.extent = float(extent)
     tr.report["init"] = {**rep, "extent": tr.extent, "box": [lo.tolist(), hi.tolist()]}
-    tr.env = tr.env_adam = None
-    if tr.cfg.blend == "refgs":
-        refgs_start(tr)
+    tr.parts = parts_for(tr.cfg)
+    for part in tr.parts:
+        part.start(tr)
     tr.adam = Adam(learning_rates(tr), eps=tr.cfg.adam_eps, selective=tr.cfg.adam == "selective")
     tr.components = ComponentsPolicy(tr.cfg)
     tr.report["components"] = tr.components.decisions
@@ -104,20 +114,6 @@ def fresh(tr):
         {"scene": str(tr.scene_spec.path), "dataset": str(tr.ds.root), "dataset_options": tr.ds.options,
          "dataset_notes": tr.ds.notes, "sparse": str(tr.ds.sparse) if tr.ds.sparse else None,
          "tracks_distorted": tr.ds.tracks_distorted}, indent=1))
-
-def refgs_start(tr):
-    """Ref-GS's starting point: roughness 0.5 (its sigmoid(0); beta carries it), the albedo composited in linear
-    space (the SfM colours converted, so the first image shows them), and the directional grid at its initial
-    value (glint_env)."""
-    from glint_mi_plugins.glint_env import DirectionalGrid
-
-    gs = tr.sets["interface"]
-    gs.logit_specular[:] = 0.0
-    colour = gs.sh[:, 0] * cv.SH_C0 + 0.5
-    gs.sh[:, 0] = ((cv.srgb_to_linear(np.clip(colour, 0.0, 1.0)) - 0.5) / cv.SH_C0).astype(gs.sh.dtype)
-    grid = DirectionalGrid(tr.cfg.env_levels, init=float(np.log(tr.cfg.env_init)))
-    tr.env = grid.data.copy()  # channel-major flat, as the integrator holds it
-    tr.env_adam = (np.zeros_like(tr.env), np.zeros_like(tr.env), np.zeros(1))
 
 def set_budget(tr):
     """epochs -> iterations from the training set's size (recomputed identically on resume)."""
@@ -161,8 +157,8 @@ def build_scene(tr):
         for role, gs in tr.sets.items():
             tr.dev.load(role, gs, tr.strategy)
     tr._push()
-    if tr.integ.env is not None:
-        tr._push_env()
+    for part in tr.parts:
+        part.push(tr)
 
 def glass_cue_check(tr) -> None:
     """Before training: drop the secondary sets where there is no glass cue (ComponentsPolicy.glass_cue_drops),
@@ -218,10 +214,9 @@ def load_checkpoint(tr):
     tr.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
     tr.adam = Adam(learning_rates(tr), eps=tr.cfg.adam_eps, selective=tr.cfg.adam == "selective")
     tr.adam.load_state_dict({k[5:]: v for k, v in z.items() if k.startswith("adam/")})
-    tr.env = tr.env_adam = None
-    if "env" in z:
-        tr.env = z["env"].astype(np.float32)
-        tr.env_adam = (z["env_adam/m"].copy(), z["env_adam/v"].copy(), z["env_adam/n"].copy())
+    tr.parts = parts_for(tr.cfg)
+    for part in tr.parts:
+        part.load(tr, z)
     srng = np.random.default_rng()
     srng.bit_generator.state = json.loads(str(z["strategy_rng"]))
     tr.strategy = Strategy(tr.cfg.densify, tr.extent, srng, kernel=tr.cfg.kernel, iterations=tr.cfg.iterations)

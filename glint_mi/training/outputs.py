@@ -55,9 +55,8 @@ def save_checkpoint(tr) -> Path:
     if tr.cfg.depth_align == "image" and tr.bank.depth_affine is not None:  # refitted from the model
         arrays["depth_affine"] = tr.bank.depth_affine
     arrays.update({f"adam/{k}": v for k, v in tr.adam.state_dict().items()})
-    if tr.env is not None:
-        arrays.update({"env": tr.env, "env_adam/m": tr.env_adam[0], "env_adam/v": tr.env_adam[1],
-                       "env_adam/n": tr.env_adam[2]})
+    for part in tr.parts:  # a method's own parameters (Ref-GS's grid)
+        arrays.update(part.state())
     arrays.update({f"strategy/{k}": v for k, v in tr.strategy.state_dict().items()})
     buf = io.BytesIO()
     np.savez(buf, **arrays)
@@ -95,10 +94,8 @@ def save_model(tr) -> Path:
         (model / f"{role}.ply").unlink(missing_ok=True)
     v = (tr.ds.test_views or tr.ds.train_views)[0]
 
-    if tr.env is not None:  # refgs: the directional grid, [h, w, 3] log-radiance
-        buf = io.BytesIO()
-        np.save(buf, tr.integ.env.numpy())  # what _push_env last sent: tr.env as [h, w, 3]
-        atomic_write_bytes(model / "env.npy", buf.getvalue())
+    for part in tr.parts:  # a method's own model files (Ref-GS's grid: env.npy)
+        part.save(tr, model)
     props = {"dataset": str(tr.ds.root.resolve()),
              **integrator_props(tr.cfg.render, components="all", env_file="env.npy")}
     xml = model_xml(props, list(sets), shape_props(tr.cfg), sensor_xml(Camera.from_view(v), 1),

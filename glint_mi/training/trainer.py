@@ -88,18 +88,10 @@ class Trainer:
         builder.assemble(self, resume)
 
     # ------------------------------------------------------------ set-up
-    def _env_step(self):
-        """Dense Adam on the refgs grid (every ray reads it), then back to the integrator with gradients on."""
-        grid = self.integ.env
-        g = np.nan_to_num(grid.grad(), nan=0.0, posinf=0.0, neginf=0.0)
-        grid.clear_grad()
-        self.adam.step_array(self.env, g, self.env_adam, self.cfg.lr_env * self.cfg.lr_multiplier)
-        self._push_env()
-
-    def _push_env(self):
-        grid = self.integ.env
-        grid.data = self.env
-        grid.enable_grad()
+    @property
+    def env(self):
+        """Ref-GS's directional grid (channel-major flat log-radiance; training/refgs.py), None without one."""
+        return next((part.values for part in self.parts if part.name == "refgs"), None)
 
     @property
     def epoch(self) -> float:
@@ -274,8 +266,8 @@ class Trainer:
         c = self.cfg
         frac = self.it / max(c.iterations - 1, 1)
         lr_pos = np.exp((1 - frac) * np.log(c.lr_position) + frac * np.log(c.lr_position_final)) / c.lr_position
-        if self.env is not None:
-            self._env_step()
+        for part in self.parts:  # a method's own parameters (Ref-GS's grid)
+            part.step(self)
         if self.dev is not None:
             return self._update_device(st, lr_pos)
         for role in list(self.sets):
