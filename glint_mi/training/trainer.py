@@ -1,7 +1,9 @@
 """The staged GLINT optimisation (glint-method.md sections 3-5) on ray patches, with resumable runs.
 
-One iteration: draw ``patches`` p x p patches across training views -> ``integrator.trace`` (primal) -> losses on Dr.Jit
-leaves of the traced buffers -> their adjoints -> ``integrator.backward`` (path replay, constant memory) ->
+The trainer runs the loop; :mod:`glint_mi.training.builder` assembles the run it loops over and
+:mod:`glint_mi.training.outputs` writes it. One iteration: draw ``patches`` p x p patches across training views ->
+``integrator.trace`` (primal) -> the objective's terms (:mod:`glint_mi.training.objective`) on Dr.Jit leaves of the
+traced buffers -> their adjoints -> ``integrator.backward`` (path replay, constant memory) ->
 renderer-space gradients -> chain rule to raw parameters (:func:`glint_mi.training.optim.raw_gradients`) -> Adam
 (numpy). Structural changes (densify, prune, resets, dropping a set) go through
 :class:`glint_mi.training.strategy.Strategy`.
