@@ -23,7 +23,7 @@ sys.path.insert(0, str(ROOT))
 def case_coverage(seed: int, views: int = 48, width: int = 192, height: int = 108) -> dict:
     """Mean share of the image the case's bounding box covers over the arc's views, the first camera's distance to
     the case centre (m) and the case's size (m)."""
-    from glint_mi.data.cameras import trajectory
+    from glint_mi.dataset.trajectory import trajectory
     from glint_mi.dataset.room import build_room
 
     room = build_room(seed)

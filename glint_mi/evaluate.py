@@ -5,7 +5,7 @@ each view finishes, ``RUN/per_view/<view>.json``, ``RUN/renders/<view>_{rgb,dept
 ``<view>.exr`` with every buffer (R G B and the components cI.*, cR.*, cT.* as linear light: the model's colours are
 fitted to sRGB photos and converted; Z planar depth, N.X N.Y N.Z world normal, T transparency), then
 ``RUN/metrics.json`` (means, FPS, train time, machine). Ctrl-C keeps the views already done. The functions are
-:mod:`glint_mi.evaluation.renders`'.
+:mod:`glint_mi.evaluation.renders`.
 """
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 
 from glint_mi.evaluation import metrics as M
-from glint_mi.evaluation.renders import (CHUNK, PARTIAL, eval_options, evaluate, load_model, load_run,
-                                         render_view, save_renders)
+from glint_mi.evaluation.renders import (CHUNK, PARTIAL, check_finished_run, eval_options, evaluate, load_model,
+                                         load_run, render_view, save_renders)
 
 __all__ = ["CHUNK", "PARTIAL", "eval_options", "evaluate", "load_model", "load_run", "render_view", "save_renders",
            "main"]  # the library's names, where scripts of earlier sessions import them
@@ -52,9 +52,7 @@ def main(argv=None) -> int:
     from glint_mi.runs import RunError, hold_run
 
     try:
-        if not (args.run / "config.json").exists() or not (args.run / "model").exists():
-            raise RunError(f"{args.run}: not a finished run (needs config.json and model/); train with "
-                           f"`python -m glint_mi.optimize scene.xml --out {args.run}`.")
+        check_finished_run(args.run)  # before the lock, which would make the folder
         # one process at a time on a run: two evaluations would move their renders over each other's, and an
         # evaluation beside a resumed training would read a model that is being replaced
         HELD.append(hold_run(args.run))  # held until the process ends

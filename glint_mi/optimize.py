@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig, flatten, migrate
+from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig, flatten
 
 
 def parse_sets(items) -> dict:
@@ -46,7 +46,9 @@ def build_config(args, scene_settings: dict | None = None, scene_path=None, note
     sources.append((f"method {method}", flatten(METHODS[method].overrides)))
     if args.config:
         TrainConfig.load(args.config)  # validates, with errors naming the file
-        sources.append((f"--config {args.config}", migrate(flatten(json.loads(args.config.read_text())))))
+        # as written: the migrations are for a run folder's complete config.json (they fill in what an older run
+        # used where a key is absent), not for a file that gives a few fields
+        sources.append((f"--config {args.config}", flatten(json.loads(args.config.read_text()))))
     flags = {}
     if args.iterations is not None:
         if args.iterations < 1:

@@ -118,20 +118,20 @@ def hold_run(run: Path):
     return f
 
 
-def read_checkpoint(path: Path) -> dict:
-    """Every array of a checkpoint, or a RunError naming the file when it is damaged (truncated by a full disk or a
-    copy that stopped): a checkpoint is written atomically, so a damaged one was not written by this run."""
+def read_checkpoint(path: Path, keys: tuple | None = None) -> dict:
+    """The arrays ``keys`` of a checkpoint (default: every one), or a RunError naming the file when it is damaged
+    (truncated by a full disk or a copy that stopped): a checkpoint is written atomically, so a damaged one was not
+    written by this run."""
     import zipfile
 
     import numpy as np
 
     try:
         with np.load(path, allow_pickle=False) as f:
-            z = {k: f[k] for k in f.files}
-        for key in ("iteration", "elapsed", "extent", "bounds", "rng", "report"):
-            if key not in z:
-                raise ValueError(f"no '{key}' array")
-        return z
+            for key in ("iteration", "elapsed", "extent", "bounds", "rng", "report"):
+                if key not in f.files:
+                    raise ValueError(f"no '{key}' array")
+            return {k: f[k] for k in (f.files if keys is None else keys)}
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
         raise RunError(f"{path}: damaged, cannot be resumed ({e}); restore the file from a copy, or start the run "
                        f"again in a new folder (--out).") from None

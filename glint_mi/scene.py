@@ -37,22 +37,11 @@ class OptimScene:
     path: Path
     dataset: Path
     sets: dict[str, SetSpec]
-    settings: dict                # the training settings the XML states (SETTINGS): they join the config, which
-    #                               refuses a different value from any other source (optimize.build_config) and the
-    #                               trainer refuses a config that disagrees with them
+    settings: dict                # the training settings the XML states (TrainConfig fields: components and
+    #                               max_order on the integrator, kernel on every shape alike, grid_n and grid_k on the
+    #                               grid shape). The config owns them: optimize.build_config refuses another source
+    #                               giving a different value, and the trainer a config that disagrees with them
     missing: str = "error"        # frames whose image is missing: error | skip (``missing_images``)
-
-    @property
-    def integrator(self) -> dict:  # the name before settings were split from the sets (scripts of earlier sessions)
-        return dict(self.settings)
-
-
-# Training settings an optimisation scene may state, where they live in the XML, and their element type. They are
-# TrainConfig fields: the config owns them, the XML may give them (python -m glint_mi.scene --kernel ...), and a value
-# given both in the XML and elsewhere (a method, --config, --set) must agree. kernel: one for every set; grid_n and
-# grid_k: on the shape initialised on the grid.
-SETTINGS = {"components": ("integrator", "string"), "max_order": ("integrator", "integer"),
-            "kernel": ("shape", "string"), "grid_n": ("grid shape", "integer"), "grid_k": ("grid shape", "integer")}
 
 
 # ------------------------------------------------------------------ writer

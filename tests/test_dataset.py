@@ -252,7 +252,7 @@ def test_room_without_glass_is_the_same_room():
 @needs_pycolmap
 def test_sfm_points_lie_on_surfaces(tmp_path):
     """Known-pose triangulation (pycolmap SIFT + matching) gives points on the scene's surfaces."""
-    from glint_mi.data.cameras import trajectory
+    from glint_mi.dataset.trajectory import trajectory
     from glint_mi.dataset.generate import sfm_points, write_scene_files
     room = build_room(2)
     cams = trajectory(room, 10, 96, 54, 2)

@@ -242,7 +242,8 @@ def test_sfm_failure_is_one_line_in_the_report(tmp_path):
     from PIL import Image
 
     from glint_mi.config import TrainConfig
-    from glint_mi.data.cameras import Camera, look_at, write_transforms_json
+    from glint_mi.data.cameras import Camera, write_transforms_json
+    from glint_mi.dataset.trajectory import look_at
     from glint_mi.scene import read_scene, scene_xml
     from glint_mi.training.trainer import Trainer
 

@@ -143,6 +143,8 @@ def test_a_setting_given_in_the_xml_and_the_config_must_agree(tiny, tmp_path):
                "--out", tmp_path / "run")
     assert r.returncode == 0, r.stderr[-3000:]
     assert _config(tmp_path / "run")["components"] == "all" and _config(tmp_path / "run")["w_trans"] == 0.03
+    preset = TrainConfig.for_preset("tiny", iterations=3).flat()  # nothing else moved (no old run's migrations)
+    assert {k for k, v in _config(tmp_path / "run").items() if preset[k] != v} == {"components", "w_trans"}
     assert f"note: the command line sets w_trans = 0.03 over --config {cfg}'s 0.02" in r.stderr
     stated = xml_with(tiny, tmp_path, components="auto")
     for extra, other in ((("--config", cfg), f"--config {cfg} gives 'all'"),

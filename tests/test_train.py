@@ -118,7 +118,7 @@ def test_densification_floor_is_relative_to_the_interface(rng):
         for rule in ("relative", "absolute"):
             cfg = tiny_cfg(densify_top=0.5, densify_grad_rel=0.12 if rule == "relative" else 0.0,
                            densify_grad=0.0 if rule == "relative" else 1e-3, max_gaussians=1000)
-            strat = Strategy(cfg, extent=1.0, rng=np.random.default_rng(0))
+            strat = Strategy.for_config(cfg, extent=1.0, rng=np.random.default_rng(0))
             grad = np.zeros((n, 3))
             grad[:, 0] = np.geomspace(1e-6, 1e-2, n) * scale / 1000.0
             for role in ("interface", "reflection"):
@@ -172,7 +172,7 @@ def test_densify_prune_keeps_set_adam_and_stats_aligned(rng):
     adam._state("interface", g)
     adam.state["interface"]["logit_specular"][0][:] = np.arange(n) + 100  # moments tagged by row
     adam.state["interface"]["logit_specular"][2][:] = np.arange(n) + 1  # and step counts
-    strat = Strategy(cfg, extent=1.0, rng=np.random.default_rng(0))
+    strat = Strategy.for_config(cfg, extent=1.0, rng=np.random.default_rng(0))
     grad = np.zeros((n, 3))
     grad[:, 0] = np.arange(n)  # the top half by gradient: rows 10..19
     strat.accumulate("interface", n, grad, np.ones(n))
@@ -1172,7 +1172,7 @@ def test_the_strategy_owns_its_schedule():
     the last iteration before densify_until; resets every reset_every before densify_until; densifying(it) says
     which iterations feed the statistic."""
     cfg = tiny_cfg(iterations=1000, densify_from=0.05, densify_until=0.5, densify_every=0.1, reset_every=0.2)
-    s = Strategy(cfg, 1.0, np.random.default_rng(0))
+    s = Strategy.for_config(cfg, 1.0, np.random.default_rng(0))
     dens = [it + 1 for it in range(1000) if s.due(it)[0]]
     resets = [it + 1 for it in range(1000) if s.due(it)[1]]
     assert dens == [100, 200, 300, 400, 500] and resets == [200, 400]

@@ -1,5 +1,5 @@
-"""Structure from motion with pycolmap: SfM points for the known poses of generated scenes, or full SfM with its
-pose error against the truth (CPU SIFT, exhaustive matching)."""
+"""Structure from motion with pycolmap: SfM points for known poses (any capture without points, generated rooms),
+or full SfM with its pose error against known poses (the generator's check); CPU SIFT, exhaustive matching."""
 from __future__ import annotations
 
 import contextlib

@@ -20,7 +20,8 @@ import numpy as np
 
 from glint_mi.conventions import linear_to_srgb
 from glint_mi.data.exr import read_gt_exr, write_gt_exr
-from glint_mi.data.cameras import Camera, sensor_xml, trajectory, write_colmap_text, write_transforms_json
+from glint_mi.data.cameras import Camera, sensor_xml, write_colmap_text, write_transforms_json
+from glint_mi.dataset.trajectory import trajectory
 from glint_mi.dataset.room import RoomScene, build_room
 
 PRESETS = {  # protocol.md size presets; spp measured so that ground-truth noise stays below the metrics' resolution

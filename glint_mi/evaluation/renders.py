@@ -203,21 +203,28 @@ def evaluate(integ, views: list[View], out_dir: Path | None = None, train_s: flo
     return out
 
 
+def check_finished_run(run: Path) -> None:
+    """Refuse a folder that holds no finished run (its config.json and model/)."""
+    from glint_mi.runs import RunError
+
+    if not (Path(run) / "config.json").exists() or not (Path(run) / "model").exists():
+        raise RunError(f"{run}: not a finished run (needs config.json and model/); train with "
+                       f"`python -m glint_mi.optimize scene.xml --out {run}`.")
+
+
 def load_run(run: str | Path, full: bool = False, max_hits: int | None = None, components: str = "all"):
     """(integrator, dataset, config, train_s) of a finished run folder (its ``model/``); the dataset at the
     training resolution, or with ``full`` at its full resolution; ``max_hits`` and ``components`` as in
     :func:`load_model`."""
     from glint_mi.config import TrainConfig
-    from glint_mi.runs import RunError, load_run_dataset, read_checkpoint
+    from glint_mi.runs import load_run_dataset, read_checkpoint
 
     run = Path(run)
-    if not (run / "config.json").exists() or not (run / "model").exists():
-        raise RunError(f"{run}: not a finished run (needs config.json and model/); train with "
-                       f"`python -m glint_mi.optimize scene.xml --out {run}`.")
+    check_finished_run(run)
     cfg = TrainConfig.load(run / "config.json")
     ds = load_run_dataset(run, cfg, full=full or cfg.eval_full)
     ckpt = run / "checkpoint.npz"
-    train_s = float(read_checkpoint(ckpt)["elapsed"]) if ckpt.exists() else None
+    train_s = float(read_checkpoint(ckpt, keys=("elapsed",))["elapsed"]) if ckpt.exists() else None
     return load_model(run, cfg, max_hits, components), ds, cfg, train_s
 
 

@@ -66,8 +66,7 @@ def assemble(tr, resume: bool) -> None:
                               getattr(tr, "_resume_affine", None))  # set by _load_checkpoint only
     if not resume:
         glass_cue_check(tr)  # may give the run the 3dgs profile (another kernel): the strategy is built after it
-        tr.strategy = Strategy(tr.cfg.densify, tr.extent, np.random.default_rng([tr.cfg.seed, 1]),  # own stream
-                               kernel=tr.cfg.kernel, iterations=tr.cfg.iterations)
+        tr.strategy = Strategy.for_config(tr.cfg, tr.extent, np.random.default_rng([tr.cfg.seed, 1]))  # own stream
     from glint_mi.data.priors import priors_are_derived
 
     tr.report["priors_derived_from_ground_truth"] = bool(priors_are_derived(tr.ds.root))
@@ -219,7 +218,7 @@ def load_checkpoint(tr):
         part.load(tr, z)
     srng = np.random.default_rng()
     srng.bit_generator.state = json.loads(str(z["strategy_rng"]))
-    tr.strategy = Strategy(tr.cfg.densify, tr.extent, srng, kernel=tr.cfg.kernel, iterations=tr.cfg.iterations)
+    tr.strategy = Strategy.for_config(tr.cfg, tr.extent, srng)
     tr.strategy.load_state_dict({k[9:]: v for k, v in z.items() if k.startswith("strategy/")})
     tr.log(f"resumed {tr.run_dir} at iteration {tr.it}")
 

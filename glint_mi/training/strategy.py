@@ -30,11 +30,8 @@ class Strategy:
 
     def __init__(self, densify, extent: float, rng: np.random.Generator, kernel: str = "surfel",
                  iterations: int = 1):
-        """``densify``: the config's densify layer (a whole TrainConfig gives it, with its kernel and iterations);
-        ``kernel`` and ``iterations`` (the run's length, which the schedule's fractions are of) from the model and
-        run layers."""
-        if hasattr(densify, "densify"):  # a TrainConfig
-            densify, kernel, iterations = densify.densify, densify.kernel, densify.iterations
+        """``densify``: the config's densify layer; ``kernel`` and ``iterations`` (the run's length, which the
+        schedule's fractions are of) from the model and run layers (:meth:`for_config` takes all three)."""
         self.cfg, self.extent, self.rng = densify, float(extent), rng
         self.kernel, self.iterations = kernel, int(iterations)
         self.grad_sum: dict[str, np.ndarray] = {}
@@ -42,6 +39,11 @@ class Strategy:
         self.events: list[Event] = []
         self.resets = 0
         self.last_reset = -10 ** 9
+
+    @classmethod
+    def for_config(cls, cfg, extent: float, rng: np.random.Generator) -> "Strategy":
+        """The strategy of a run configured as ``cfg`` (a TrainConfig)."""
+        return cls(cfg.densify, extent, rng, kernel=cfg.kernel, iterations=cfg.iterations)
 
     # ------------------------------------------------------------- schedule
     def at(self, fraction: float) -> int:
