@@ -90,8 +90,9 @@ class RenderConfig:
     #                                      | refgs: Ref-GS's deferred srgb(c_I + s(reflect(d, N), beta as roughness))
     env_levels: int = 7                  # refgs: mip levels of its directional grid, 2^L x 2^(L+1) texels at level 0
     env_init: float = 0.001              # refgs: the specular radiance s the grid starts at, everywhere
-    traversal: str = "auto"              # kbuffer (glint_mi.native's Embree k-buffer, LLVM only) | bvh (Mitsuba's
-    #                                      queries, one per hit: the CUDA path) | auto: kbuffer where it builds
+    traversal: str = "auto"              # kbuffer (glint_mi.native's Embree k-buffer, LLVM only) | shellbvh (the same
+    #                                      lists from our own BVH: host, or a CUDA device through CuPy) | bvh
+    #                                      (Mitsuba's queries, one per hit) | auto: kbuffer where it builds, else bvh
     stored_hits: bool = True             # the replay walks the forward's stored hit lists instead of re-running
     #                                      the BVH queries (exact: same hits and arithmetic; rays x max_hits x 4 B
     #                                      per pass); false = re-trace (benchmarks/profile_step.py compares)
@@ -431,7 +432,7 @@ class TrainConfig:
         need(0 <= self.sh_degree <= 3, "sh_degree", "must be 0..3")
         need(self.max_order in (1, 2), "max_order", "must be 1 or 2")
         need(self.priors in ("all", "none"), "priors", "use all or none")
-        need(self.traversal in ("auto", "kbuffer", "bvh"), "traversal", "use auto, kbuffer or bvh")
+        need(self.traversal in ("auto", "kbuffer", "shellbvh", "bvh"), "traversal", "use auto, kbuffer, shellbvh or bvh")
         need(self.adam in ("selective", "dense"), "adam", "use selective or dense")
         need(self.update in ("device", "host"), "update", "use device or host")
         need(self.densify_grad_rel >= 0 and self.densify_grad >= 0, "densify_grad_rel",

@@ -52,24 +52,43 @@ class GaussianSetRef:
         self._data = data  # the native traversal reads it on the host when it next builds (native())
         self._shells_stale = True
 
-    def native(self) -> "native.ShellSet":
-        """The set's shells in the native k-buffer traversal's Embree scene, brought up to date on first use after a
-        change. A set's first build is static (a trained model being rendered); once it has changed it is taken for
-        a training set: rebuilt in Embree's refittable mode, then refitted while its size stays the same (exact: the
-        same lists), with a full rebuild every REBUILD_EVERY refits and whenever the size changes."""
+    def native(self, engine: str = "embree"):
+        """The set's shells in a k-buffer traversal's structure, brought up to date on first use after a change:
+        ``engine`` embree (:class:`glint_mi.native.ShellSet`), shellbvh (our own BVH: :class:`BvhShellSet` on the
+        host, :class:`glint_mi.native.cuda.CudaShellSet` under a CUDA variant). A set's first build is static (a
+        trained model being rendered); once it has changed it is taken for a training set: rebuilt refittable, then
+        refitted while its size stays the same (exact: the same lists), with a full rebuild every REBUILD_EVERY
+        refits and whenever the size changes."""
         shells = getattr(self, "_shells", None)
+        if shells is not None and self._engine != engine:
+            shells = self._shells = None
         if shells is not None and not self._shells_stale:
             return shells
-        data = np.array(self._data, np.float64).reshape(-1, 10)
-        if (shells is not None and shells.dynamic and len(shells) == len(data)
+        device = engine == "shellbvh" and not (mi.variant() or "").startswith("llvm")
+        data = self._data if device else np.array(self._data, np.float64).reshape(-1, 10)
+        if (shells is not None and shells.dynamic and len(shells) == dr.width(self._data) // 10
                 and shells.extent == self._extent and self._refits < self.REBUILD_EVERY):
-            shells.refit(data)
+            shells.refit(_cupy(data) if device else data)
             self._refits += 1
         else:
-            self._shells = native.ShellSet(data, self._extent, dynamic=shells is not None and self.REBUILD_EVERY > 0)
+            dynamic = shells is not None and self.REBUILD_EVERY > 0
+            if device:
+                from glint_mi.native import cuda
+                self._shells = cuda.CudaShellSet(np.array(self._data, np.float32).reshape(-1, 10), self._extent,
+                                                 dynamic=dynamic)
+            else:
+                kind = native.BvhShellSet if engine == "shellbvh" else native.ShellSet
+                self._shells = kind(data, self._extent, dynamic=dynamic)
             self._refits = 0
+        self._engine = engine
         self._shells_stale = False
         return self._shells
+
+
+def _cupy(x):
+    """A Dr.Jit CUDA array as a CuPy array (DLPack, no copy)."""
+    import cupy
+    return cupy.from_dlpack(x)
 
 
 # 2DGS's depth distortion maps each hit's depth into [0, 1) as an NDC depth with these planes (its rasteriser's

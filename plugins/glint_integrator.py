@@ -76,9 +76,12 @@ and the same transport as a first-order reference on mesh scenes with real glass
      (Embree, as shipped in the mitsuba wheel, built with the system C++ compiler): one traversal lists a ray's
      next ``kbuffer_k`` shell entries in order, shells that hold the origin first. ``bvh``: one Mitsuba
      ``ray_intersect_preliminary`` from the BVH root per hit, walking back one shell diameter behind the origin
-     (the plain-AD path ``gradient=ad`` and CUDA variants always use it). ``auto`` (default): kbuffer when the
-     library is built and the variant is LLVM, else bvh. Both composite in order of shell entry; they differ only
-     where float32 shell tests disagree (tested against each other and a float64 brute force).
+     (the plain-AD path ``gradient=ad`` always uses it). ``shellbvh``: the same k-buffer lists from our own BVH
+     (``glint_mi/native/shellbvh.h``), code that runs on the host and, under a CUDA variant, on the device
+     (compiled by NVRTC through CuPy; at most 32 entries a round there). ``auto`` (default): kbuffer when the
+     library is built and the variant is LLVM, else bvh. They composite in order of shell entry; kbuffer and
+     shellbvh list the same entries, and differ from bvh only where float32 shell tests disagree (tested against
+     each other and a float64 brute force).
  * - kbuffer_k
    - |int|
    - Shell entries listed per traversal (a round); rays still going take another round. Any size gives the same
@@ -126,6 +129,17 @@ from .glint_mesh import first_surface, is_glass, trace_meshes  # noqa: F401
 DEFAULT_AOVS = "depth,normal,transparency,interface,reflection,transmission,alpha"
 ALPHA_MIN, ALPHA_MAX, T_MIN = 1.0 / 255.0, 0.99, 1e-4
 BLENDS = ("fresnel", "envgs", "alpha", "refgs")
+TRAVERSALS = ("auto", "kbuffer", "shellbvh", "bvh")
+
+
+def shellbvh_why_not() -> str:
+    """Why ``traversal: shellbvh`` cannot run in this process ('' if it can): the native library is needed to build
+    the tree, and under a CUDA variant CuPy (NVRTC) and a device to run it."""
+    why = native.why_not()
+    if why or (mi.variant() or "").startswith("llvm"):
+        return why
+    from glint_mi.native import cuda
+    return cuda.why_not()
 
 
 def schlick(cos_theta, f0):
@@ -208,18 +222,26 @@ class GlintIntegrator(GaussianPasses):
         self.transmittance_min = float(props.get("transmittance_min", T_MIN))
         self.inside_origins = bool(props.get("inside_origins", True))
         traversal = str(props.get("traversal", "auto"))
-        if traversal not in ("auto", "kbuffer", "bvh"):
-            raise ValueError(f"glint: 'traversal' must be auto, kbuffer or bvh (got '{traversal}').")
+        if traversal not in TRAVERSALS:
+            raise ValueError(f"glint: 'traversal' must be one of {', '.join(TRAVERSALS)} (got '{traversal}').")
         self.kbuffer_k = int(props.get("kbuffer_k", self.max_hits))
         if self.kbuffer_k < 1:
             raise ValueError(f"glint: 'kbuffer_k' must be >= 1 (got {self.kbuffer_k}).")
-        self.kbuffer = False
-        if traversal != "bvh":
+        self.kbuffer, self.kbuffer_engine = False, "embree"
+        if traversal == "shellbvh":
+            why = shellbvh_why_not()
+            if why:
+                raise ValueError(f"glint: traversal=shellbvh is unavailable: {why}. Use traversal=bvh.")
+            self.kbuffer, self.kbuffer_engine = True, "shellbvh"
+        elif traversal != "bvh":
             why = native.why_not_here()
             if why and traversal == "kbuffer":
                 raise ValueError(f"glint: traversal=kbuffer is unavailable: {why}. Use traversal=bvh, or build it "
                                  f"with `python -m glint_mi.native`.")
             self.kbuffer = not why and self.inside_origins  # without inside origins: Mitsuba's shell test, as it was
+        if self.kbuffer and not self.inside_origins:
+            raise ValueError("glint: a k-buffer traversal lists the shells that hold the ray origin: it needs "
+                             "inside_origins=true (or use traversal=bvh).")
         if not (0.0 <= self.alpha_min < self.alpha_max < 1.0 and 0.0 <= self.transmittance_min < 1.0):
             raise ValueError("glint: need 0 <= alpha_min < alpha_max < 1 and 0 <= transmittance_min < 1.")
         legacy = "fresnel" if bool(props.get("fresnel", True)) else "envgs"

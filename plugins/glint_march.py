@@ -11,6 +11,7 @@ import mitsuba as mi
 import numpy as np
 
 import glint_mi.conventions as cv
+from glint_mi.native.cuda import MAX_K as DEVICE_K
 
 from .glint_composite import Composite, GaussianSetRef, _ray_epsilon, _widen
 
@@ -195,8 +196,8 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
         return ((d_o, d_d) if replay else acc), hits, count
 
     def _march_kbuffer(self, gs, o0, d, active, ad, total, adjoint, ray_grad, weight, budget, listed, slot):
-        """:meth:`_march_bvh` with the native k-buffer traversal (``traversal``: kbuffer): rounds of one Embree
-        traversal per ray that lists its next ``kbuffer_k`` shell entries in order (shells that hold the origin
+        """:meth:`_march_bvh` with a k-buffer traversal (``traversal``: kbuffer, Embree's; shellbvh, our own BVH, on the
+        host or on a CUDA device): rounds of one traversal per ray that lists its next ``kbuffer_k`` shell entries in order (shells that hold the origin
         first: no walk back), each followed by a Dr.Jit loop that composites them with the same arithmetic and the
         same stopping rule (T <= t_stop or the hit budget). Rays still going after a full buffer take another round."""
         replay = adjoint is not None
@@ -206,26 +207,39 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
         active = _widen(mi.Bool(active), n)
         t_stop = _widen(t_stop, n)
         dr.eval(origin, dd, active, t_stop)
-        xyz = lambda v: np.stack([np.asarray(v.x), np.asarray(v.y), np.asarray(v.z)], axis=1)
-        O, D, go = xyz(origin), xyz(dd), np.asarray(active, dtype=bool).copy()
+        # host arrays (numpy, LLVM) or device arrays (CuPy by DLPack, the shell BVH on a CUDA variant)
+        shells = gs.native(self.kbuffer_engine)
+        on_device = getattr(shells, "xp_name", "numpy") == "cupy"
+        if on_device:
+            import cupy as xp
+            arr = lambda v, dtype=None: (xp.from_dlpack(mi.UInt32(dr.select(v, 1, 0))) != 0 if dtype is bool
+                                         else xp.from_dlpack(v))
+            k_cap = min(self.kbuffer_k, DEVICE_K)
+        else:
+            xp = np
+            arr = lambda v, dtype=None: np.asarray(v, dtype=dtype)
+            k_cap = self.kbuffer_k
+        xyz = lambda v: xp.stack([arr(v.x), arr(v.y), arr(v.z)], axis=1)
+        O, D, go = xyz(origin), xyz(dd), arr(active, bool).copy()
         # a round holds 12 bytes per ray and entry (prims and t from the traversal, the prims again for Dr.Jit): at
         # most KBUFFER_BYTES (a 1080p frame lists 10 entries per round)
-        shells, k = gs.native(), min(self.kbuffer_k, max(4, KBUFFER_BYTES // (12 * n)))
+        k = min(k_cap, max(4, KBUFFER_BYTES // (12 * n)))
         T, acc = dr.full(mi.Float, 1.0, n), _widen(Composite(), n)
         d_o, d_d = dr.zeros(mi.Vector3f, n), dr.zeros(mi.Vector3f, n)
         hits = dr.zeros(mi.UInt32, n)  # every listed entry composited is one hit: the list count is the hit count
-        t_prev, p_prev = np.full(n, -np.inf, np.float32), np.full(n, 0xFFFFFFFF, np.uint32)
-        rows = np.arange(n)
-        while go.any():
-            prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count(), out=_list_buffers(n, k))
+        t_prev, p_prev = xp.full(n, -np.inf, xp.float32), xp.full(n, 0xFFFFFFFF, xp.uint32)
+        rows = xp.arange(n)
+        while bool(go.any()):
+            prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count(),
+                                          out=None if on_device else _list_buffers(n, k))
             T, acc, d_o, d_d, hits, more = self._kbuffer_round(
                 gs, mi.UInt32(prims.ravel()), mi.UInt32(cnt), k, o0, d, t_stop, total, adjoint, ray_grad, budget,
                 listed, slot, T, acc, d_o, d_d, hits)
             dr.eval(T, acc, d_o, d_d, hits, more, listed)
-            last = np.maximum(cnt.astype(np.int64) - 1, 0)
-            t_prev = np.where(cnt > 0, ts[rows, last], t_prev)
-            p_prev = np.where(cnt > 0, prims[rows, last], p_prev)
-            go &= (cnt == k) & np.asarray(more, dtype=bool)
+            last = xp.maximum(cnt.astype(xp.int64) - 1, 0)
+            t_prev = xp.where(cnt > 0, ts[rows, last], t_prev)
+            p_prev = xp.where(cnt > 0, prims[rows, last], p_prev)
+            go &= (cnt == k) & arr(more, bool)
         return ((d_o, d_d) if replay else acc), hits, hits
 
     @dr.syntax

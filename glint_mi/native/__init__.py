@@ -1,6 +1,8 @@
-"""The native k-buffer traversal (``kbuffer.cpp``): per ray, the next K bounding-shell entries of a Gaussian set from
-one Embree traversal, in order, shells around the origin included; and Adam on gathered rows (``adam.cpp``, the
-numpy reference's arithmetic bit for bit, :func:`adam_rows`).
+"""The native k-buffer traversal: per ray, the next K bounding-shell entries of a Gaussian set from one traversal, in
+order, shells around the origin included, either through Embree (``kbuffer.cpp``, :class:`ShellSet`) or through our
+own BVH (``shellbvh.h`` / ``shellbvh.cpp``, :class:`BvhShellSet`: the code a CUDA device runs too, ``shellbvh_cuda.cu``
+and :mod:`glint_mi.native.cuda`); both list the same entries. And Adam on gathered rows (``adam.cpp``, the numpy
+reference's arithmetic bit for bit, :func:`adam_rows`).
 
 Built with the system C++ compiler against the Embree headers and library that ship in the mitsuba wheel
 (``python -m glint_mi.native``; ``make`` runs it). :func:`load` returns the library, building it on first use when
@@ -18,7 +20,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kbuffer.cpp"
-SOURCES = (SOURCE, HERE / "adam.cpp")
+SOURCES = (SOURCE, HERE / "shellbvh.cpp", HERE / "adam.cpp")
+HEADERS = (HERE / "shellbvh.h",)
 LIBRARY = HERE / "libglint_kbuffer.so"
 _lib = None
 _why = ""
@@ -48,7 +51,8 @@ def build(verbose: bool = False) -> Path:
         raise RuntimeError(f"the drjit wheel at {dr_dir} has no nanothread header/library")
     fd, tmp = tempfile.mkstemp(prefix=".libglint_kbuffer.", suffix=".so", dir=LIBRARY.parent)
     os.close(fd)
-    cmd = [cxx, "-O2", "-std=c++17", "-ffp-contract=off", "-shared", "-fPIC", "-pthread", f"-I{mi_dir / 'include'}",
+    cmd = [cxx, "-O2", "-std=c++17", "-ffp-contract=off", "-shared", "-fPIC", "-pthread", f"-I{HERE}",
+           f"-I{mi_dir / 'include'}",
            f"-I{dr_dir / 'include'}", *map(str, SOURCES), "-o", tmp, f"-L{mi_dir}", "-lembree3", f"-Wl,-rpath,{mi_dir}",
            f"-L{dr_dir}", "-lnanothread", f"-Wl,-rpath,{dr_dir}"]
     try:
@@ -70,7 +74,7 @@ def load():
     if _lib is not None or _why:
         return _lib
     try:
-        if not LIBRARY.exists() or LIBRARY.stat().st_mtime < max(p.stat().st_mtime for p in SOURCES):
+        if not LIBRARY.exists() or LIBRARY.stat().st_mtime < max(p.stat().st_mtime for p in SOURCES + HEADERS):
             build()
         try:
             lib = ctypes.CDLL(str(LIBRARY))
@@ -86,6 +90,13 @@ def load():
     lib.kb_free.restype, lib.kb_free.argtypes = None, [vp]
     lib.kb_query.restype = None
     lib.kb_query.argtypes = [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
+    lib.sb_build.restype, lib.sb_build.argtypes = vp, [vp, i, f]
+    lib.sb_refit.restype, lib.sb_refit.argtypes = i, [vp, vp, i, f]
+    lib.sb_free.restype, lib.sb_free.argtypes = None, [vp]
+    lib.sb_query.restype = None
+    lib.sb_query.argtypes = [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
+    lib.sb_sizes.restype, lib.sb_sizes.argtypes = None, [vp, vp]
+    lib.sb_export.restype, lib.sb_export.argtypes = None, [vp, vp, vp, vp]
     i64, d = ctypes.c_int64, ctypes.c_double
     lib.adam_rows.restype = None
     lib.adam_rows.argtypes = [vp, vp, vp, vp, vp, i64, i64, vp, vp, vp, d, d, d]
@@ -134,7 +145,7 @@ def why_not_here() -> str:
 
 class ShellSet:
     """One Gaussian set's shells in an Embree scene of the native library (``data`` [N, 10] as the ellipsoids shape
-    holds it: centre, shell scales / extent, x y z w quaternion).
+    holds it: centre, shell scales / extent, x y z w quaternion). :class:`BvhShellSet` is the same on our own BVH.
 
     ``dynamic``: a set that training moves every step. Its BVH is built in Embree's refittable mode, and
     :meth:`refit` replaces the shells of the same N Gaussians in ~0.5 ms instead of a ~6 ms build (8.5k Gaussians);
@@ -147,7 +158,19 @@ class ShellSet:
             raise RuntimeError(f"glint_mi.native is unavailable: {_why}")
         self.data = np.ascontiguousarray(data, dtype=np.float32).reshape(-1, 10)
         self.extent, self.dynamic = float(extent), bool(dynamic)
-        self.handle = self._lib.kb_build(self.data.ctypes.data, len(self.data), self.extent, int(self.dynamic))
+        self.handle = self._build()
+
+    def _build(self):
+        return self._lib.kb_build(self.data.ctypes.data, len(self.data), self.extent, int(self.dynamic))
+
+    def _refit(self, data) -> int:
+        return self._lib.kb_refit(self.handle, data.ctypes.data, len(data), self.extent)
+
+    def _query(self, *args) -> None:
+        self._lib.kb_query(self.handle, *args)
+
+    def _free(self) -> None:
+        self._lib.kb_free(self.handle)
 
     def __len__(self) -> int:
         return len(self.data)
@@ -160,8 +183,8 @@ class ShellSet:
             raise ValueError(f"glint_mi.native: refit needs a dynamic set of the same size ({len(self.data)} "
                              f"Gaussians{'' if self.dynamic else ', built static'}; got {len(data)}): build a new "
                              f"ShellSet")
-        if self._lib.kb_refit(self.handle, data.ctypes.data, len(data), self.extent) != 0:
-            raise RuntimeError("glint_mi.native: kb_refit refused the data")
+        if self._refit(data) != 0:
+            raise RuntimeError("glint_mi.native: the refit refused the data")
         self.data = data
 
     def query(self, o, d, t_prev, p_prev, active, k: int, threads: int, out=None):
@@ -186,11 +209,50 @@ class ShellSet:
                     a.flags.c_contiguous and a.flags.writeable for a in out):
                 raise ValueError(f"glint_mi.native: query's out must be writeable C-contiguous arrays uint32 [{n}, "
                                  f"{k}], float32 [{n}, {k}], uint32 [{n}]")
-        self._lib.kb_query(self.handle, n, o.ctypes.data, d.ctypes.data, t_prev.ctypes.data, p_prev.ctypes.data,
+        self._query(n, o.ctypes.data, d.ctypes.data, t_prev.ctypes.data, p_prev.ctypes.data,
                            act.ctypes.data, k, prims.ctypes.data, ts.ctypes.data, count.ctypes.data, int(threads))
         return prims, ts, count
 
     def __del__(self):
         if getattr(self, "handle", None) and self._lib is not None:
-            self._lib.kb_free(self.handle)
+            self._free()
             self.handle = None
+
+
+class BvhShellSet(ShellSet):
+    """:class:`ShellSet` on the shell BVH of ``shellbvh.cpp`` instead of Embree: the same lists (the same shell
+    arithmetic and insertion rule), from the traversal code a CUDA device runs (:mod:`glint_mi.native.cuda`). Every
+    tree can be refitted (``dynamic`` only says whether :meth:`refit` is allowed, as for Embree's sets).
+
+    :meth:`arrays` gives the flat tree (nodes, order, shells) that a device uploads."""
+
+    def _build(self):
+        return self._lib.sb_build(self.data.ctypes.data, len(self.data), self.extent)
+
+    def _refit(self, data) -> int:
+        return self._lib.sb_refit(self.handle, data.ctypes.data, len(data), self.extent)
+
+    def _query(self, *args) -> None:
+        self._lib.sb_query(self.handle, *args)
+
+    def _free(self) -> None:
+        self._lib.sb_free(self.handle)
+
+    def depth(self) -> int:
+        """The tree's depth (its root is at 0); the traversal's stack holds one node a level."""
+        import numpy as np
+        sizes = np.zeros(4, np.int64)
+        self._lib.sb_sizes(self.handle, sizes.ctypes.data)
+        return int(sizes[3])
+
+    def arrays(self):
+        """(nodes uint8 [M, 32], order uint32 [N], shells float64 [N, 12]): the tree as a device reads it (each node
+        three float32 lows, an int32 index, three float32 highs, an int32 count: see ``shellbvh.h``)."""
+        import numpy as np
+        sizes = np.zeros(4, np.int64)
+        self._lib.sb_sizes(self.handle, sizes.ctypes.data)
+        nodes = np.zeros((int(sizes[0]), 32), np.uint8)
+        order = np.zeros(int(sizes[1]), np.uint32)
+        shells = np.zeros((int(sizes[2]), 12), np.float64)
+        self._lib.sb_export(self.handle, nodes.ctypes.data, order.ctypes.data, shells.ctypes.data)
+        return nodes, order, shells

@@ -5,11 +5,15 @@
 // intersection callback records every shell entry after the last one composited into a sorted per-ray buffer of K
 // and rejects it, so one traversal yields the next K entries in order; once the buffer is full the ray's tfar
 // shrinks to the K-th entry and boxes beyond it are culled. A shell around the origin has its entry behind it
-// (t < 0) and is listed first, so no walk back is needed. The ray/ellipsoid quadratic is solved in double.
+// (t < 0) and is listed first, so no walk back is needed. The ray/ellipsoid quadratic is solved in double. The shell,
+// its quadratic and the buffer's insertion rule are shellbvh.h's, which our own BVH (shellbvh.cpp, and on a device
+// shellbvh_cuda.cu) uses too: both list the same entries.
 // Rays are handed out in blocks to Dr.Jit's own worker threads (its nanothread pool): after a Dr.Jit kernel those
 // workers spin for a while, and threads of our own would share the cores with them (measured: 2 threads of our own
 // ran no faster than 1 inside a training step).
 // Built by `python -m glint_mi.native` (make does it); used by plugins/glint_integrator.py (traversal=kbuffer).
+#include "shellbvh.h"
+
 #include <embree3/rtcore.h>
 #include <nanothread/nanothread.h>
 #include <cmath>
@@ -23,8 +27,7 @@ RTC_NAMESPACE_USE
 namespace {
 
 struct Prim {
-    double c[3];
-    double m[9];  // rows of R^T / s: world -> unit sphere
+    glint_bvh::Shell s;  // world -> unit sphere
     float lo[3], hi[3];
 };
 
@@ -61,38 +64,12 @@ void intersect_fn(const RTCIntersectFunctionNArguments *args) {
     RTCRayHit *rh = (RTCRayHit *) args->rayhit;
     RTCRay &ray = rh->ray;
     const uint32_t pid = args->primID;
-    const Prim &q = cx->prims[pid];
-    double oc[3] = {(double) ray.org_x - q.c[0], (double) ray.org_y - q.c[1], (double) ray.org_z - q.c[2]};
-    double dv[3] = {ray.dir_x, ray.dir_y, ray.dir_z};
-    double ol[3], dl[3];
-    for (int r = 0; r < 3; ++r) {
-        ol[r] = q.m[3 * r] * oc[0] + q.m[3 * r + 1] * oc[1] + q.m[3 * r + 2] * oc[2];
-        dl[r] = q.m[3 * r] * dv[0] + q.m[3 * r + 1] * dv[1] + q.m[3 * r + 2] * dv[2];
-    }
-    double a = dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2];
-    double b = ol[0] * dl[0] + ol[1] * dl[1] + ol[2] * dl[2];
-    // b^2 - a c without the cancellation of a distant origin: a (1 - |ol - (b / a) dl|^2)
-    double pc[3] = {ol[0] - b / a * dl[0], ol[1] - b / a * dl[1], ol[2] - b / a * dl[2]};
-    double disc = a * (1.0 - (pc[0] * pc[0] + pc[1] * pc[1] + pc[2] * pc[2]));
-    if (!(disc > 0.0) || !(a > 0.0))
-        return;
-    double sq = std::sqrt(disc);
-    float tn = (float) ((-b - sq) / a), tf = (float) ((-b + sq) / a);
-    if (!(tf > 0.f))
-        return;
-    if (!(tn > cx->t_prev || (tn == cx->t_prev && pid > cx->p_prev)))
+    const float o[3] = {ray.org_x, ray.org_y, ray.org_z}, d[3] = {ray.dir_x, ray.dir_y, ray.dir_z};
+    float tn, tf;
+    if (!glint_bvh::shell_entry(cx->prims[pid].s, o, d, tn, tf))
         return;
     const int K = cx->K;
-    if (cx->count == K && !(tn < cx->t[K - 1]))
-        return;
-    int i = cx->count < K ? cx->count++ : K - 1;
-    while (i > 0 && (cx->t[i - 1] > tn || (cx->t[i - 1] == tn && cx->p[i - 1] > pid))) {
-        cx->t[i] = cx->t[i - 1];
-        cx->p[i] = cx->p[i - 1];
-        --i;
-    }
-    cx->t[i] = tn;
-    cx->p[i] = pid;
+    cx->count = glint_bvh::insert_entry(tn, tf, pid, cx->t_prev, cx->p_prev, K, cx->count, cx->t, cx->p);
     if (cx->count == K) {  // boxes entered beyond the K-th entry cannot hold a nearer one
         ray.tfar = std::max(cx->t[K - 1], std::nextafter(cx->tnear, std::numeric_limits<float>::infinity()));
         rh->hit.geomID = args->geomID;
@@ -112,28 +89,8 @@ extern "C" {
 // The shells of n Gaussians into set->prims (their transforms and float32 boxes).
 static void fill(Set *set, const float *data, int n, float extent) {
     set->prims.resize(n);
-    for (int i = 0; i < n; ++i) {
-        const float *e = data + 10 * i;
-        Prim &q = set->prims[i];
-        double x = e[6], y = e[7], z = e[8], w = e[9];
-        double nq = std::sqrt(x * x + y * y + z * z + w * w);
-        if (nq > 1e-12) { x /= nq; y /= nq; z /= nq; w /= nq; } else { x = y = z = 0; w = 1; }
-        double R[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
-                         {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
-                         {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
-        double s[3] = {std::max((double) e[3] * extent, 1e-30), std::max((double) e[4] * extent, 1e-30),
-                       std::max((double) e[5] * extent, 1e-30)};
-        for (int k = 0; k < 3; ++k) {
-            q.c[k] = e[k];
-            for (int j = 0; j < 3; ++j)
-                q.m[3 * k + j] = R[j][k] / s[k];  // (R^T)[k][j] / s[k]
-            double h = std::sqrt(R[k][0] * R[k][0] * s[0] * s[0] + R[k][1] * R[k][1] * s[1] * s[1] +
-                                 R[k][2] * R[k][2] * s[2] * s[2]);
-            h = h * (1.0 + 1e-5) + 1e-6 * (1.0 + std::fabs((double) e[k]));  // float32 boxes hold the shell
-            q.lo[k] = (float) (e[k] - h);
-            q.hi[k] = (float) (e[k] + h);
-        }
-    }
+    for (int i = 0; i < n; ++i)
+        glint_bvh::make_shell(data + 10 * (size_t) i, extent, set->prims[i].s, set->prims[i].lo, set->prims[i].hi);
 }
 
 // dynamic = 0: a BVH of medium quality, built once (rendering a trained model). dynamic = 1: a training set, whose
