@@ -509,3 +509,31 @@ def test_sfm_observations_text_and_binary(tmp_path):
         assert obs["b"][0].shape == (0, 2) and obs["b"][1].shape == (0, 3)
     (txt / "points3D.txt").unlink()
     assert read_observations(tmp_path / "txt") is None
+
+
+def test_sfm_points_come_from_the_same_scene_generated_elsewhere(tmp_path):
+    """``make --sfm-from DIR`` (a GPU without pycolmap): sparse/0 is copied from the same scene generated with
+    --sfm known, at the size given by --size; a scene with other cameras (seed, size) is refused before anything is
+    written, with one line naming the folder and the fix."""
+    run = lambda out, *extra: subprocess.run(
+        [sys.executable, "-m", "glint_mi.dataset", "make", str(out), "--seed", "4", "--preset", "tiny", "--views", "3",
+         "--spp", "4", "--priors", "none", *extra], capture_output=True, text=True, cwd=ROOT, timeout=600)
+    src = tmp_path / "src"
+    assert run(src, "--size", "40x24").returncode == 0
+    scene = src / "scene_004"
+    meta = json.loads((scene / "meta.json").read_text())
+    assert meta["preset"]["width"] == 40 and meta["preset"]["height"] == 24
+    # stand-in for a --sfm known scene (pycolmap's triangulation takes a minute): points and the mode it records
+    (scene / "sparse" / "0" / "points3D.txt").write_text("# 1 point\n1 0.1 0.2 0.3 200 100 50 0.5\n")
+    (scene / "meta.json").write_text(json.dumps({**meta, "sfm": {"mode": "known", "points3D": 1}}))
+    r = run(tmp_path / "gpu", "--size", "40x24", "--sfm-from", str(src))
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "gpu" / "scene_004"
+    assert (out / "sparse" / "0" / "points3D.txt").read_text() == (scene / "sparse" / "0" / "points3D.txt").read_text()
+    assert json.loads((out / "meta.json").read_text())["sfm"]["copied_from"] == str(scene)
+    r = run(tmp_path / "other", "--size", "48x27", "--sfm-from", str(src))
+    assert r.returncode == 2 and r.stderr.strip().splitlines()[-1].startswith("error: --sfm-from:"), r.stderr
+    assert "is not this scene" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "other").exists() or not any((tmp_path / "other").iterdir())
+    r = run(tmp_path / "bad", "--size", "40x", "--sfm-from", str(src))
+    assert r.returncode == 2 and "--size 40x" in r.stderr

@@ -21,9 +21,14 @@ def main(argv=None) -> int:
     mk.add_argument("--preset", default="quick", choices=["tiny", "quick", "bench", "gpu"])
     mk.add_argument("--views", type=int, help="override the preset's number of views")
     mk.add_argument("--spp", type=int, help="override the preset's samples per pixel")
+    mk.add_argument("--size", metavar="WxH", help="override the preset's image size (e.g. 320x180)")
     mk.add_argument("--sfm", choices=["known", "full", "none"], default=None,
                     help="SfM points: triangulate with the known poses (default; 'none' for the tiny preset), "
                          "'full' also runs SfM without poses and reports its pose error")
+    mk.add_argument("--sfm-from", type=Path, metavar="DIR",
+                    help="take each scene's SfM points from DIR/<scene>, the same scene generated elsewhere with "
+                         "--sfm known (same seed, preset, views and size; checked): for a machine without pycolmap, "
+                         "e.g. a GPU that renders the ground truth. Copies sparse/0; no SfM is run here")
     mk.add_argument("--priors", choices=["derived", "none"], default="derived",
                     help="write imperfect depth/normal/albedo priors derived from ground truth (labelled as such)")
     mk.add_argument("--no-glass", action="store_true",
@@ -110,10 +115,22 @@ def main(argv=None) -> int:
 
     from glint_mi.dataset.generate import Preset, make_scene
 
-    preset = Preset.named(args.preset, views=args.views, spp=args.spp)
+    size = {}
+    if args.size:
+        try:
+            w, h = (int(v) for v in args.size.lower().split("x"))
+            assert w >= 8 and h >= 8
+        except (ValueError, AssertionError):
+            ap.error(f"--size {args.size}: give WIDTHxHEIGHT, each >= 8 (e.g. 320x180)")
+        size = dict(width=w, height=h)
+    if args.sfm_from is not None and not args.sfm_from.is_dir():
+        ap.error(f"--sfm-from {args.sfm_from}: not a folder (it holds scene_<seed>/ folders generated with --sfm known)")
+    if args.sfm_from is not None and args.sfm not in (None, "known"):
+        ap.error(f"--sfm-from takes known-pose points from elsewhere: it cannot be combined with --sfm {args.sfm}")
+    preset = Preset.named(args.preset, views=args.views, spp=args.spp, **size)
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    summary = []
+    summary, refused = [], None
     for i in range(args.scenes):
         name = f"scene_{args.seed + i:03d}"
         done = args.out / name / "meta.json"
@@ -126,11 +143,20 @@ def main(argv=None) -> int:
             def progress(done, total):
                 bar.n = done
                 bar.refresh()
-            meta = make_scene(args.out / name, args.seed + i, preset, progress,
-                              sfm=args.sfm or ("none" if args.preset == "tiny" else "known"),
-                              priors=args.priors == "derived", glass=not args.no_glass, renderer=args.renderer,
-                              albedo_prior=not args.no_albedo_prior, see_through=args.see_through,
-                              prior_model=args.prior_model)
+            try:
+                meta = make_scene(args.out / name, args.seed + i, preset, progress,
+                                  sfm=args.sfm or ("none" if args.preset == "tiny" else "known"),
+                                  priors=args.priors == "derived", glass=not args.no_glass, renderer=args.renderer,
+                                  albedo_prior=not args.no_albedo_prior, see_through=args.see_through,
+                                  prior_model=args.prior_model,
+                                  sfm_from=None if args.sfm_from is None else args.sfm_from / name)
+            except ValueError as exc:
+                if "--sfm-from" not in str(exc):
+                    raise
+                refused = exc
+        if refused is not None:
+            print(f"error: {refused}", file=sys.stderr)
+            return 2
         summary.append({"scene": name, **{k: meta[k] for k in SUMMARY_KEYS}})
         pts = meta["sfm"].get("points3D", 0)
         noise = meta["gt_noise_psnr_db"]

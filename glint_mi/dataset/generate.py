@@ -290,6 +290,34 @@ def retriangulate(folder: Path) -> dict:
     return {**stats, "observations": int(sum(len(r) for _, r in tracks.values()))}
 
 
+def _check_same_cameras(src: Path, cams: list[Camera], seed: int) -> None:
+    """Refuse SfM points from a scene whose seed, size or cameras differ from the one being generated."""
+    import tempfile
+    meta = json.loads((src / "meta.json").read_text())
+    if meta.get("sfm", {}).get("mode") not in ("known", "full"):
+        raise ValueError(f"--sfm-from: {src / 'meta.json'} has sfm mode {meta.get('sfm', {}).get('mode')!r}; "
+                         f"generate it with --sfm known")
+    with tempfile.TemporaryDirectory() as d:
+        write_transforms_json(Path(d) / "transforms.json", cams)
+        ours = json.loads((Path(d) / "transforms.json").read_text())
+    theirs = json.loads((src / "transforms.json").read_text())
+    size = lambda t: (t.get("w"), t.get("h"))
+    mats = lambda t: np.array([fr["transform_matrix"] for fr in t["frames"]], np.float64)
+    differs = []
+    if meta.get("seed") != seed:
+        differs.append(f"seed {meta.get('seed')}, here {seed}")
+    if size(theirs) != size(ours):
+        differs.append(f"images {size(theirs)[0]}x{size(theirs)[1]}, here {size(ours)[0]}x{size(ours)[1]}")
+    if len(theirs["frames"]) != len(ours["frames"]):
+        differs.append(f"{len(theirs['frames'])} views, here {len(ours['frames'])}")
+    elif not (np.allclose(mats(theirs), mats(ours), atol=1e-6) and all(
+            np.isclose(theirs.get(k, 0), ours.get(k, 0)) for k in ("fl_x", "fl_y", "cx", "cy"))):
+        differs.append("other camera poses or intrinsics")
+    if differs:
+        raise ValueError(f"--sfm-from: {src} is not this scene ({'; '.join(differs)}): generate it with the same "
+                         f"--seed, --preset, --views and --size")
+
+
 def split_views(names: list[str], every: int = 8) -> dict:
     test = names[::every]
     return {"train": [n for n in names if n not in test], "test": test}
@@ -297,7 +325,7 @@ def split_views(names: list[str], every: int = 8) -> dict:
 
 def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=None, sfm: str = "known",
                priors: bool = True, glass: bool = True, renderer: str = "mitsuba", albedo_prior: bool = True,
-               see_through: float | None = None, prior_model: str = "realistic") -> dict:
+               see_through: float | None = None, prior_model: str = "realistic", sfm_from: Path | None = None) -> dict:
     """Generate, render and export one scene into ``folder`` (written to a temporary folder, then moved).
 
     ``glass=False``: the same room without the case's glass panels (frame and objects stay).
@@ -308,9 +336,17 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     assumption).
 
     ``sfm``: ``known`` (SfM points triangulated with the true poses), ``full`` (also SfM without poses, its pose
-    error reported in meta.json), ``none`` (no points3D)."""
+    error reported in meta.json), ``none`` (no points3D). ``sfm_from``: the same scene generated elsewhere with
+    ``sfm=known`` (same seed, preset and cameras, checked before any rendering): its ``sparse/0`` is copied instead
+    of running SfM (a machine without pycolmap)."""
     if sfm not in ("known", "full", "none"):
         raise ValueError(f"sfm must be known, full or none (got '{sfm}').")
+    if sfm_from is not None:
+        sfm_from = Path(sfm_from)
+        for need in ("sparse/0/points3D.txt", "transforms.json", "meta.json"):
+            if not (sfm_from / need).is_file():
+                raise ValueError(f"--sfm-from: {sfm_from / need} is missing (ship sparse/, transforms.json and "
+                                 f"meta.json of a scene generated with --sfm known)")
     if renderer not in ("mitsuba", "cycles"):
         raise ValueError(f"renderer must be mitsuba or cycles (got '{renderer}').")
     if renderer == "cycles":
@@ -331,10 +367,12 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     if {k: old.get(k) for k in state} != state:
         shutil.rmtree(tmp, ignore_errors=True)
         old = {}
-    tmp.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     room = build_room(seed, glass)
     cams = trajectory(room, preset.views, preset.width, preset.height, seed)
+    if sfm_from is not None:  # before anything is written
+        _check_same_cameras(sfm_from, cams, seed)
+    tmp.mkdir(parents=True, exist_ok=True)
     tex_rel = write_assets(tmp, room)
     exposure = old.get("exposure")
     if exposure is None:
@@ -347,10 +385,15 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     render = render_views_cycles if renderer == "cycles" else render_views
     stats = render(scene, tmp, cams, preset.spp, progress)
     points, tracks, sfm_stats = None, None, {"mode": "none"}
-    if sfm != "none":
-        xyz, rgb, st, tracks = sfm_points(scene, tmp, cams, sfm)
-        points, sfm_stats = (xyz, rgb), {"mode": sfm, **st}
-    write_colmap_text(tmp / "sparse" / "0", cams, points, tracks)
+    if sfm_from is not None:
+        shutil.rmtree(tmp / "sparse", ignore_errors=True)
+        shutil.copytree(sfm_from / "sparse", tmp / "sparse")
+        sfm_stats = {**json.loads((sfm_from / "meta.json").read_text())["sfm"], "copied_from": str(sfm_from)}
+    else:
+        if sfm != "none":
+            xyz, rgb, st, tracks = sfm_points(scene, tmp, cams, sfm)
+            points, sfm_stats = (xyz, rgb), {"mode": sfm, **st}
+        write_colmap_text(tmp / "sparse" / "0", cams, points, tracks)
     meta = {"generator": "glint_mi.dataset", "seed": seed, "preset": dataclasses.asdict(preset),
             "room_size_m": room.size.round(3).tolist(), "case_lo": room.case_lo.round(4).tolist(),
             "case_hi": room.case_hi.round(4).tolist(), "case_support": room.support, "glass": glass,
