@@ -128,8 +128,10 @@ def _job(method, scene, run, preset, variant, seed, extra, missing="error") -> d
     it (run_one), returns its metrics."""
     res = run_one(method, Path(scene), Path(run), preset, variant, log=lambda *a: None, missing=missing, seed=seed,
                   **extra)
+    sizes = Path(run) / "report.json"  # the Gaussians at the end (the priors row trains none)
+    n = sum(json.loads(sizes.read_text()).get("sizes", {}).values()) if sizes.exists() else 0
     return {"metrics": res["metrics"], "variant": res.get("variant", "unrecorded"),
-            "device": res.get("device", "unrecorded")}
+            "device": res.get("device", "unrecorded"), "gaussians": n}
 
 
 def run_jobs(jobs: list, preset: str, variant: str, extra: dict, ray_address: str | None = None,
@@ -231,7 +233,7 @@ def write_results(rows: list[dict], out: Path, header: str = "") -> str:
     """results.csv (one row per method x scene) and table.md (per scene, then the mean per method)."""
     from glint_mi.runs import atomic_write_text
 
-    keys = ["method", "scene", "seed", *COLUMNS, "variant", "device"]
+    keys = ["method", "scene", "seed", *COLUMNS, "variant", "device", "gaussians"]
     # Round once, to the CSV's 6 digits, and build the table from those values: rounding the raw value to the
     # table's 4 digits could differ from rounding the CSV's (12.26499 -> 12.26, but 12.265 -> 12.27).
     rows = [{k: (float(f"{v:.6g}") if isinstance(v, float) else v) for k, v in r.items()} for r in rows]
@@ -359,7 +361,7 @@ def main(argv=None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     rows = [{"method": m, "scene": scene.name, "seed": seed, **res["metrics"],
-             "variant": res["variant"], "device": res["device"]}
+             "variant": res["variant"], "device": res["device"], "gaussians": res.get("gaussians", 0)}
             for (m, scene, _, seed), res in zip(jobs, results)]
     for scene in scenes:
         runs = {}
