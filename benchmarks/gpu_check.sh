@@ -9,6 +9,9 @@
 #   paper (~3 minutes on an H100, needs RUN, a trained run carried along, e.g. out/gpu_run): TESTS again (failures of a first
 #     check), then a paper-scale step profiled (one 480 x 270 image's rays a step, 2025 patches of 8 x 8, with the
 #     targets), a 1M-ray step profiled (its hit lists kept: 5 GiB), and the shell traversal on custom primitives against triangles.
+#   budget (issue 65 item 3, <= 9 minutes): GLINT, 3dgs-priors and 3dgs at a GPU's budget on the declared rooms
+#     9811-9812 (docs/results/gpu_budget): benchmarks/gpu_budget.py, with EXTRA (e.g. "--set traversal=shellbvh");
+#     a shell-BVH check first when CuPy is there (benchmarks/bench_shellbvh.py: the same lists as the host's).
 # A dry run on the CPU: NO_WHEELS=1 PY=.venv/bin/python GLINT_VARIANT=llvm_ad_rgb TESTS=tests/test_losses.py \
 #               TARGET_RAYS=65536 bash benchmarks/gpu_check.sh
 # Each stage has its own time limit, so a slow one still leaves the others' results. No pycolmap there: the tests
@@ -29,6 +32,17 @@ import glint_mi; glint_mi.set_variant(); from glint_mi.machine import summary; p
 t0=$SECONDS
 par=(); "$PY" -c "import xdist" 2>/dev/null && par=(-n 6)
 case "${1:-first}" in
+budget)
+    if "$PY" -c "import cupy" 2>/dev/null; then
+        timeout 60 "$PY" benchmarks/bench_shellbvh.py --sizes 100000,200000 --k 16,32 --json "$out/shellbvh.json" \
+            > "$out/shellbvh.md" 2>&1
+        echo "shellbvh bench rc=$? ($((SECONDS - t0)) s)" >> "$out/summary.txt"
+    fi
+    "$PY" benchmarks/gpu_budget.py --sfm docs/results/gpu_budget/rooms_sfm.tgz --seed 9811 --scenes 2 \
+        --minutes ${MINUTES:-$(( 8 - (SECONDS - t0) / 60 ))} ${EXTRA:-} --out "$out" > "$out/budget.txt" 2>&1
+    echo "gpu_budget rc=$? ($((SECONDS - t0)) s)" >> "$out/summary.txt"
+    cat "$out/summary.txt"
+    exit 0;;
 paper)
     run=${RUN:-out/gpu_run}
     if [ -n "${TESTS:-}" ]; then

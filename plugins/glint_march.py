@@ -220,6 +220,9 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
             arr = lambda v, dtype=None: np.asarray(v, dtype=dtype)
             k_cap = self.kbuffer_k
         xyz = lambda v: xp.stack([arr(v.x), arr(v.y), arr(v.z)], axis=1)
+        sync = (lambda: (dr.sync_thread(), xp.cuda.get_current_stream().synchronize())) if on_device else (
+            lambda: None)  # Dr.Jit and CuPy launch on their own streams: each waits for the other's writes
+        sync()
         O, D, go = xyz(origin), xyz(dd), arr(active, bool).copy()
         # a round holds 12 bytes per ray and entry (prims and t from the traversal, the prims again for Dr.Jit): at
         # most KBUFFER_BYTES (a 1080p frame lists 10 entries per round)
@@ -232,10 +235,12 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
         while bool(go.any()):
             prims, ts, cnt = shells.query(O, D, t_prev, p_prev, go, k, dr.thread_count(),
                                           out=None if on_device else _list_buffers(n, k))
+            sync()
             T, acc, d_o, d_d, hits, more = self._kbuffer_round(
                 gs, mi.UInt32(prims.ravel()), mi.UInt32(cnt), k, o0, d, t_stop, total, adjoint, ray_grad, budget,
                 listed, slot, T, acc, d_o, d_d, hits)
             dr.eval(T, acc, d_o, d_d, hits, more, listed)
+            sync()
             last = xp.maximum(cnt.astype(xp.int64) - 1, 0)
             t_prev = xp.where(cnt > 0, ts[rows, last], t_prev)
             p_prev = xp.where(cnt > 0, prims[rows, last], p_prev)
