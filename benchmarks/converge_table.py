@@ -1,0 +1,208 @@
+"""Every method where it stops gaining (issue 66): quality against budget (epochs) and capacity (how far
+densification lets the sets grow), the point where each method has stopped gaining, and the table at those points.
+
+Each ``EPOCHS:CAPACITY=FOLDER[,FOLDER...]`` names ``python -m glint_mi.benchmark`` outputs trained with that many
+epochs at that capacity level (a label: ``default``, ``grow``, ``wide``, ordered as given by ``--capacities``). A
+method's curve uses the ``--curve-rooms`` it has at every point, seed 0. A method has *stopped gaining* at the
+smallest (epochs, capacity) whose mean PSNR is within ``--tol`` dB (0.2) of the next doubling of the epochs and of
+the next capacity level, where those were run; if the largest point still gains, it says so and takes that point.
+The converged table then gives each method at its point over every room and seed found there.
+
+    .venv/bin/python benchmarks/converge_table.py 60:grow=E60 120:grow=E120A,E120B 240:grow=E240 120:default=D120 \\
+        --curve-rooms scene_9801,scene_9802 --out docs/results/converge_98xx
+
+Writes ``curves.csv`` (every run used), ``curves.md`` (the curve means and each method's point), ``converged.md``
+(the table: PSNR overall, on the glass and off it, normals, AbsRel, t IoU, Gaussians, train minutes; GLINT's
+difference to each method) and ``curves.png`` (PSNR against epochs and against Gaussians).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import statistics
+from pathlib import Path
+
+KEYS = ("psnr", "psnr_glass", "psnr_off_glass", "normal_mae", "normal_mae_glass", "absrel", "absrel_glass", "t_iou",
+        "train_s", "gaussians")
+
+
+def _f(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def read_runs(folder: Path) -> list[dict]:
+    """The rows of a benchmark folder's results.csv, each with its Gaussians at the end (report.json when the csv
+    has no such column)."""
+    path = folder / "results.csv"
+    if not path.exists():
+        raise SystemExit(f"error: {path} not found (a python -m glint_mi.benchmark output folder holds it)")
+    out = []
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            seed = int(r["seed"])
+            run = folder / "runs" / r["scene"] / (r["method"] + (f"@seed{seed}" if seed else ""))
+            g = _f(r.get("gaussians"))
+            if not g == g or g == 0:
+                rep = run / "report.json"
+                g = float(sum(json.loads(rep.read_text()).get("sizes", {}).values())) if rep.exists() else math.nan
+            out.append({"method": r["method"], "scene": r["scene"], "seed": seed,
+                        **{k: _f(r.get(k)) for k in KEYS if k != "gaussians"}, "gaussians": g})
+    return out
+
+
+def gather(specs: list[str]) -> list[dict]:
+    rows, seen = [], set()
+    for spec in specs:
+        point, _, folders = spec.partition("=")
+        epochs, _, cap = point.partition(":")
+        if not folders or not cap:
+            raise SystemExit(f"error: {spec!r}: give EPOCHS:CAPACITY=FOLDER[,FOLDER...]")
+        for folder in folders.split(","):
+            for r in read_runs(Path(folder)):
+                key = (float(epochs), cap, r["method"], r["scene"], r["seed"])
+                if key not in seen:  # a run found twice is taken from the first folder
+                    seen.add(key)
+                    rows.append({"epochs": float(epochs), "capacity": cap, **r})
+    return rows
+
+
+def mean(rows, k):
+    v = [r[k] for r in rows if r[k] == r[k]]
+    return statistics.fmean(v) if v else math.nan
+
+
+def curve_points(rows, method, rooms):
+    """{(epochs, capacity): rows of seed 0 on the rooms present at every point of this method}."""
+    mine = [r for r in rows if r["method"] == method and r["seed"] == 0 and r["scene"] in rooms]
+    points = sorted({(r["epochs"], r["capacity"]) for r in mine})
+    if not points:
+        return {}
+    common = set.intersection(*[{r["scene"] for r in mine if (r["epochs"], r["capacity"]) == p} for p in points])
+    return {p: [r for r in mine if (r["epochs"], r["capacity"]) == p and r["scene"] in common] for p in points}
+
+
+def stopped(points: dict, capacities: list[str], tol: float):
+    """(epochs, capacity, note): the smallest point within tol of its next doubling and next capacity level."""
+    psnr = {p: mean(rs, "psnr") for p, rs in points.items()}
+    order = sorted(points, key=lambda p: (p[0], capacities.index(p[1]) if p[1] in capacities else 99))
+    for e, c in order:
+        nxt_e = [p for p in points if p[1] == c and p[0] == 2 * e]
+        ci = capacities.index(c) if c in capacities else -1
+        nxt_c = [p for p in points if p[0] == e and ci >= 0 and ci + 1 < len(capacities) and p[1] == capacities[ci + 1]]
+        last_cap = ci < 0 or ci + 1 >= len(capacities)
+        if not nxt_e or (not nxt_c and not last_cap):  # both neighbours are needed (no larger capacity: the budget's)
+            continue
+        gains = [psnr[q] - psnr[(e, c)] for q in nxt_e + nxt_c]
+        if all(g < tol for g in gains):
+            return e, c, "stopped gaining: " + ", ".join(
+                f"{'x2 epochs' if q[1] == c else q[1]} {g:+.2f} dB" for q, g in zip(nxt_e + nxt_c, gains))
+    best = max(points, key=lambda p: psnr[p])
+    return best[0], best[1], "still gaining at the largest point run: its best point taken"
+
+
+def fmt(v, d):
+    return "-" if v != v else f"{v:.{d}f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0], epilog=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("specs", nargs="+", metavar="EPOCHS:CAPACITY=FOLDER[,FOLDER...]")
+    ap.add_argument("--methods", default="glint,glint-paper,3dgs-priors,3dgs,tsgs")
+    ap.add_argument("--capacities", default="default,grow,wide", help="capacity labels, smallest first")
+    ap.add_argument("--curve-rooms", default="", help="comma list of rooms for the curves (default: every room)")
+    ap.add_argument("--tol", type=float, default=0.2)
+    ap.add_argument("--out", type=Path, required=True)
+    args = ap.parse_args()
+    rows = gather(args.specs)
+    methods = [m for m in args.methods.split(",") if any(r["method"] == m for r in rows)]
+    caps = args.capacities.split(",")
+    rooms = set(args.curve_rooms.split(",")) if args.curve_rooms else {r["scene"] for r in rows}
+    args.out.mkdir(parents=True, exist_ok=True)
+    with open(args.out / "curves.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=["epochs", "capacity", "method", "scene", "seed", *KEYS])
+        w.writeheader()
+        w.writerows(rows)
+    md = [f"Curves on {', '.join(sorted(rooms))} (seed 0; a method's points use the rooms it has at all of them).",
+          "", "| method | epochs | capacity | rooms | PSNR | on glass | off glass | normal MAE | AbsRel | t IoU | "
+          "Gaussians | train min |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    chosen, curves = {}, {}
+    for m in methods:
+        pts = curve_points(rows, m, rooms)
+        curves[m] = pts
+        for (e, c), rs in sorted(pts.items(), key=lambda kv: (caps.index(kv[0][1]) if kv[0][1] in caps else 99,
+                                                                kv[0][0])):
+            md.append(f"| {m} | {e:g} | {c} | {len(rs)} | {fmt(mean(rs, 'psnr'), 2)} | {fmt(mean(rs, 'psnr_glass'), 2)} "
+                      f"| {fmt(mean(rs, 'psnr_off_glass'), 2)} | {fmt(mean(rs, 'normal_mae'), 1)} | "
+                      f"{fmt(mean(rs, 'absrel'), 3)} | {fmt(mean(rs, 't_iou'), 2)} | {fmt(mean(rs, 'gaussians'), 0)} | "
+                      f"{fmt(mean(rs, 'train_s') / 60, 1)} |")
+        if pts:
+            chosen[m] = stopped(pts, caps, args.tol)
+    md += ["", f"Where each method stopped gaining (within {args.tol} dB of twice the epochs and of the next capacity):",
+           ""]
+    md += [f"- **{m}**: {e:g} epochs, {c} ({note})" for m, (e, c, note) in chosen.items()]
+    (args.out / "curves.md").write_text("\n".join(md) + "\n")
+    # the converged table: each method at its point, every room and seed there
+    table = ["| method | point | runs | PSNR (min-max) | on glass | off glass | normal MAE | on glass | AbsRel | "
+             "on glass | t IoU | Gaussians | train min |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    at = {m: [r for r in rows if r["method"] == m and (r["epochs"], r["capacity"]) == chosen[m][:2]] for m in chosen}
+    for m, rs in at.items():
+        lo, hi = min(r["psnr"] for r in rs), max(r["psnr"] for r in rs)
+        table.append(f"| {m} | {chosen[m][0]:g} epochs, {chosen[m][1]} | {len(rs)} | {fmt(mean(rs, 'psnr'), 2)} "
+                     f"({lo:.2f}-{hi:.2f}) | {fmt(mean(rs, 'psnr_glass'), 2)} | {fmt(mean(rs, 'psnr_off_glass'), 2)} | "
+                     f"{fmt(mean(rs, 'normal_mae'), 1)} | {fmt(mean(rs, 'normal_mae_glass'), 1)} | "
+                     f"{fmt(mean(rs, 'absrel'), 3)} | {fmt(mean(rs, 'absrel_glass'), 3)} | {fmt(mean(rs, 't_iou'), 2)} | "
+                     f"{fmt(mean(rs, 'gaussians'), 0)} | {fmt(mean(rs, 'train_s') / 60, 1)} |")
+    if "glint" in at:
+        table += ["", "GLINT against each method at their points, on the (room, seed) runs both have (PSNR overall / "
+                  "on glass / off glass, dB; normal MAE, deg):", ""]
+        g = {(r["scene"], r["seed"]): r for r in at["glint"]}
+        for m, rs in at.items():
+            if m == "glint":
+                continue
+            pairs = [(g[(r["scene"], r["seed"])], r) for r in rs if (r["scene"], r["seed"]) in g]
+            if not pairs:
+                continue
+            d = {k: statistics.fmean(a[k] - b[k] for a, b in pairs if a[k] == a[k] and b[k] == b[k])
+                 for k in ("psnr", "psnr_glass", "psnr_off_glass", "normal_mae")}
+            wins = sum(a["psnr"] > b["psnr"] for a, b in pairs)
+            table.append(f"- against {m} ({len(pairs)} runs, GLINT higher in {wins}): {d['psnr']:+.2f} / "
+                         f"{d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} dB; normals {d['normal_mae']:+.1f} deg")
+    (args.out / "converged.md").write_text("\n".join(table) + "\n")
+    print("\n".join(md) + "\n\n" + "\n".join(table))
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    styles = {"default": ":", "grow": "-", "wide": "--"}
+    for i, (m, pts) in enumerate(curves.items()):
+        col = f"C{i}"
+        for c in caps:
+            line = sorted((e, mean(rs, "psnr"), mean(rs, "gaussians")) for (e, cc), rs in pts.items() if cc == c)
+            if line:
+                a1.plot([x[0] for x in line], [x[1] for x in line], styles.get(c, "-"), color=col, marker="o",
+                        label=f"{m} ({c})")
+        byg = sorted((mean(rs, "gaussians"), mean(rs, "psnr")) for (e, cc), rs in pts.items() if e == chosen[m][0])
+        if byg:
+            a2.plot([x[0] for x in byg], [x[1] for x in byg], "-", color=col, marker="o", label=m)
+    a1.set_xscale("log", base=2)
+    a1.set_xlabel("epochs (rays per training pixel), 96 x 54")
+    a1.set_ylabel("test PSNR (dB), mean of the curve rooms")
+    a1.legend(fontsize=7)
+    a2.set_xlabel("Gaussians at the end (capacity levels, at each method's chosen epochs)")
+    a2.set_ylabel("test PSNR (dB)")
+    a2.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(args.out / "curves.png", dpi=110)
+
+
+if __name__ == "__main__":
+    main()
