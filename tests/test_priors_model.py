@@ -262,3 +262,29 @@ def test_priors_cli_writes_measured_errors_and_mask_iou(tmp_path, capsys):
     assert "normal_world_deg" in rec["drawn"] and "IoU" in capsys.readouterr().out
     assert main(["priors", str(room), "--model", "realistic-v1"]) == 0
     assert json.loads((room / "priors" / "PRIORS.json").read_text())["model"] == "realistic-v1"
+
+
+def test_error_scale_sweeps_prior_quality():
+    """``--error-scale F`` (issue 66's sweep of prior quality): the normal and depth error amplitudes times F and
+    nothing else; scale 1 is the model itself, and the measured normal error grows with F for both models."""
+    import dataclasses
+
+    from glint_mi.dataset.priors import ERROR_FIELDS, MODELS, scale_errors
+
+    for name, cls in MODELS.items():
+        c = cls()
+        assert scale_errors(c, 1.0) == c
+        s = scale_errors(c, 2.0)
+        changed = {f.name for f in dataclasses.fields(c) if getattr(s, f.name) != getattr(c, f.name)}
+        assert changed == set(ERROR_FIELDS[name]), name
+    with pytest.raises(ValueError, match="positive"):
+        scale_errors(MODELS["realistic"](), 0.0)
+    views = [_view(i) for i in range(3)]
+    for model in ("realistic", "realistic-v1"):
+        base = MODELS[model]()
+        mae = []
+        for f in (0.5, 1.0, 2.0):
+            kw = {k: getattr(scale_errors(base, f), k) for k in ERROR_FIELDS[model]}
+            e = _normal_errors(model, views, **kw)
+            mae.append(float(np.nanmean([np.degrees(np.linalg.norm(x, axis=-1)) for x in e])))
+        assert mae[0] < mae[1] < mae[2] and mae[2] > 1.6 * mae[0], (model, mae)

@@ -45,6 +45,9 @@ def main(argv=None) -> int:
                     help="how often derived depth/normal priors see through the glass instead of its surface (realistic: "
                          "the expected share of glass pixels, default 0.6; realistic-v1: the probability per view, "
                          "0.75; ideal: 1; 0: they see the glass surface)")
+    mk.add_argument("--prior-error-scale", type=float, default=None, metavar="F",
+                    help="multiply the prior model's normal and depth error amplitudes by F (a sweep of prior "
+                         "quality; PRIORS.json measures what they amount to)")
     mk.add_argument("--overwrite", action="store_true",
                     help="regenerate scenes that are already complete (default: skip them, so an interrupted "
                          "multi-scene run resumes where it stopped)")
@@ -58,6 +61,8 @@ def main(argv=None) -> int:
     pr.add_argument("--see-through", type=float, default=None, metavar="P",
                     help="how often the depth/normal priors see through the glass instead of its surface (default: "
                          "the model's; see `make --help`; 0: they see the glass)")
+    pr.add_argument("--error-scale", type=float, default=None, metavar="F",
+                    help="multiply the model's normal and depth error amplitudes by F (a sweep of prior quality)")
     pr.add_argument("--no-albedo", action="store_true",
                     help="depth and normal only (default: as the scene's current priors, else with albedo)")
     cy = sub.add_parser("cycles", help="render a generated scene with Blender Cycles (the optional cycles extra)")
@@ -95,9 +100,15 @@ def main(argv=None) -> int:
             print(f"error: {e}", file=sys.stderr)
             return 3
     if args.cmd == "priors":
-        from glint_mi.dataset.priors import MODELS, derive_priors, prior_conventions
+        from glint_mi.dataset.priors import MODELS, derive_priors, prior_conventions, scale_errors
 
         c = MODELS[args.model]()
+        if args.error_scale is not None:
+            try:
+                c = scale_errors(c, args.error_scale)
+            except ValueError as e:
+                print(f"error: --error-scale: {e}", file=sys.stderr)
+                return 2
         if args.see_through is not None:
             c.see_through_glass = args.see_through
         kinds = prior_conventions(args.scene)["record"].get("kinds")
@@ -123,6 +134,8 @@ def main(argv=None) -> int:
         except (ValueError, AssertionError):
             ap.error(f"--size {args.size}: give WIDTHxHEIGHT, each >= 8 (e.g. 320x180)")
         size = dict(width=w, height=h)
+    if args.prior_error_scale is not None and not (0 < args.prior_error_scale < float("inf")):
+        ap.error(f"--prior-error-scale {args.prior_error_scale}: give a positive factor (1: the model's own errors)")
     if args.sfm_from is not None and not args.sfm_from.is_dir():
         ap.error(f"--sfm-from {args.sfm_from}: not a folder (it holds scene_<seed>/ folders generated with --sfm known)")
     if args.sfm_from is not None and args.sfm not in (None, "known"):
@@ -148,7 +161,7 @@ def main(argv=None) -> int:
                                   sfm=args.sfm or ("none" if args.preset == "tiny" else "known"),
                                   priors=args.priors == "derived", glass=not args.no_glass, renderer=args.renderer,
                                   albedo_prior=not args.no_albedo_prior, see_through=args.see_through,
-                                  prior_model=args.prior_model,
+                                  prior_model=args.prior_model, prior_error_scale=args.prior_error_scale,
                                   sfm_from=None if args.sfm_from is None else args.sfm_from / name)
             except ValueError as exc:
                 if "--sfm-from" not in str(exc):

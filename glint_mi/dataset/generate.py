@@ -325,7 +325,8 @@ def split_views(names: list[str], every: int = 8) -> dict:
 
 def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=None, sfm: str = "known",
                priors: bool = True, glass: bool = True, renderer: str = "mitsuba", albedo_prior: bool = True,
-               see_through: float | None = None, prior_model: str = "realistic", sfm_from: Path | None = None) -> dict:
+               see_through: float | None = None, prior_model: str = "realistic", sfm_from: Path | None = None,
+               prior_error_scale: float | None = None) -> dict:
     """Generate, render and export one scene into ``folder`` (written to a temporary folder, then moved).
 
     ``glass=False``: the same room without the case's glass panels (frame and objects stay).
@@ -341,6 +342,8 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
     of running SfM (a machine without pycolmap)."""
     if sfm not in ("known", "full", "none"):
         raise ValueError(f"sfm must be known, full or none (got '{sfm}').")
+    if prior_error_scale is not None and not (prior_error_scale > 0 and np.isfinite(prior_error_scale)):
+        raise ValueError(f"--prior-error-scale must be a positive number (got {prior_error_scale})")
     if sfm_from is not None:
         sfm_from = Path(sfm_from)
         for need in ("sparse/0/points3D.txt", "transforms.json", "meta.json"):
@@ -406,6 +409,9 @@ def make_scene(folder: str | os.PathLike, seed: int, preset: Preset, progress=No
         from glint_mi.dataset.priors import MODELS, derive_priors
 
         model = MODELS[prior_model]()
+        if prior_error_scale is not None:
+            from glint_mi.dataset.priors import scale_errors
+            model = scale_errors(model, prior_error_scale)
         if see_through is not None:
             model.see_through_glass = see_through
         derive_priors(tmp, seed, model, scene=scene, albedo=albedo_prior)

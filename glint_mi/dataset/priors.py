@@ -457,6 +457,29 @@ def _trace_view(scene, sensor) -> dict:
 
 MODELS = {"realistic": Realistic, "realistic-v1": PerViewRealistic, "ideal": Corruption}
 
+# What an error scale multiplies, per model: the normal and depth error amplitudes (not the see-through share, the
+# glass masks, the albedo or the unknown per-image depth scale and shift, which a loss removes anyway)
+ERROR_FIELDS = {"realistic": ("normal_world_deg", "normal_view_deg", "pixel_noise_deg", "depth_world", "depth_view",
+                              "depth_noise"),
+                "realistic-v1": ("normal_mae_deg", "normal_spread_deg", "pixel_noise_deg", "depth_absrel",
+                                 "depth_spread", "depth_noise"),
+                "ideal": ("normal_noise_deg", "depth_noise")}
+
+
+def scale_errors(c, scale: float):
+    """The model ``c`` with its normal and depth error amplitudes times ``scale`` (a sweep of prior quality: issue
+    66's 8-30 deg). The levels are the sweep's variable, drawn as any model's are; what they amount to is measured
+    in PRIORS.json as always."""
+    if not (scale > 0 and np.isfinite(scale)):
+        raise ValueError(f"the prior error scale must be a positive number (got {scale})")
+    out = dataclasses.replace(c)
+    for f in ERROR_FIELDS[model_name(c)]:
+        v = getattr(out, f)
+        setattr(out, f, tuple(scale * x for x in v) if isinstance(v, tuple) else scale * v)
+    if isinstance(out, PerViewRealistic):
+        out.normal_mae_deg = min(out.normal_mae_deg, 89.0)
+    return out
+
 
 def model_name(c) -> str:
     """The name a prior model is recorded under in PRIORS.json."""
