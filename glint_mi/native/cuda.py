@@ -76,7 +76,7 @@ class CudaShellSet:
 
     def __init__(self, data, extent: float, dynamic: bool = False):
         import numpy as np
-        from glint_mi import native
+        from glint_mi.native import BvhShellSet
         mod = _load()
         if mod is None:
             raise RuntimeError(f"glint_mi.native.cuda is unavailable: {_why}")
@@ -85,7 +85,7 @@ class CudaShellSet:
         host = np.ascontiguousarray(cp.asnumpy(cp.asarray(data)) if not isinstance(data, np.ndarray) else data,
                                     np.float32).reshape(-1, 10)
         self.extent, self.dynamic, self.n = float(extent), bool(dynamic), len(host)
-        tree = native.BvhShellSet(host, extent)
+        tree = BvhShellSet(host, extent)
         nodes, order, shells = tree.arrays()
         self.depth = tree.depth()
         del tree
