@@ -221,6 +221,9 @@ class ScheduleConfig:
     treg_from: float = 7 / 60
     plausibility_from: float = 5 / 60
     sh_every: float = 1 / 60
+    coarse_to_fine: str = ""             # patches drawn from coarser images early: "4:0.2,2:0.2" = the first 20 % of
+    #                                      the iterations from images at 1/4 of the run's size, the next 20 % at
+    #                                      1/2, the rest at full size ("": full size throughout; issue 66)
 
 
 @dataclasses.dataclass
@@ -439,6 +442,13 @@ class TrainConfig:
              "the densification floors densify_grad_rel and densify_grad must be >= 0")
         need(self.trans_masks in ("depth_gap", "prior", "gt"), "trans_masks", "use depth_gap, prior or gt")
         need(self.depth_align in ("batch", "sfm", "image"), "depth_align", "use sfm, image or batch")
+        try:
+            levels = self.pyramid()
+        except ValueError as e:
+            levels = None
+            need(False, "coarse_to_fine", str(e))
+        need(not levels or self.depth_align != "image", "coarse_to_fine",
+             "depth_align image refits the full-size images' priors only: use depth_align sfm or batch with it")
         need(self.normal_loss in ("cos", "l1_cos"), "normal_loss", "use cos (the paper) or l1_cos")
         need(self.normal_early in ("off", "unmasked"), "normal_early", "use off or unmasked (the paper)")
         need(self.eval_depth in ("expected", "median", "first_surface"), "eval_depth",
@@ -478,6 +488,28 @@ class TrainConfig:
 
     def rays_per_iteration(self) -> int:
         return self.patches * self.patch ** 2
+
+    def pyramid(self) -> list[tuple[int, float]]:
+        """``coarse_to_fine`` as [(factor, until), ...]: patches come from images at 1/factor of the run's size
+        until that fraction of the run (factors decreasing, each an integer >= 2; the rest at full size)."""
+        text = self.coarse_to_fine.replace(" ", "")
+        if not text:
+            return []
+        out, end = [], 0.0
+        for part in text.split(","):
+            f, sep, share = part.partition(":")
+            try:
+                f, share = int(f), float(share)
+            except ValueError:
+                raise ValueError(f"'{part}' is not FACTOR:SHARE (e.g. 4:0.2,2:0.2)") from None
+            if not sep or f < 2 or not 0 < share < 1 or (out and f >= out[-1][0]):
+                raise ValueError(f"'{part}': factors are integers >= 2, decreasing, each with a share of the run in "
+                                 f"(0, 1) (e.g. 4:0.2,2:0.2)")
+            end += share
+            out.append((f, end))
+        if end >= 1:
+            raise ValueError(f"the coarse levels' shares add up to {end:g}: leave part of the run at full size (< 1)")
+        return out
 
     def with_budget(self, train_pixels: int) -> "TrainConfig":
         """This config with ``iterations`` = epochs x train_pixels / rays per iteration (unchanged when epochs is 0);

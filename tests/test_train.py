@@ -1205,3 +1205,48 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     assert again.it == 2
     again.train(progress=False)
     assert again.it == 4 and (run / "model" / "scene.xml").exists()
+
+
+@BITWISE
+def test_coarse_to_fine_draws_early_patches_from_coarser_images(room, tmp_path, monkeypatch):
+    """``coarse_to_fine``: the first iterations draw their patches from the dataset read at 1/k of the run's size
+    (rays through the k x k blocks, photos and priors block means, the same SfM inputs), then from the full-size
+    bank; a too-small coarse level and a malformed value are refused before the run folder is made; an interrupted
+    run resumes bit for bit across the switch (one Dr.Jit thread)."""
+    spec = read_scene(room.parent / "scene.xml")
+    kw = dict(iterations=12, patches=4, patch=4, checkpoint_every=1000, coarse_to_fine="2:0.5")
+    threads = dr.thread_count()
+    dr.set_thread_count(1)
+    try:
+        a = Trainer(tmp_path / "a", tiny_cfg(**kw), scene=spec, log=lambda *a: None)
+        (until, coarse), = a.coarse
+        full = a.bank
+        v = full.views[0]
+        assert until == 6 and coarse.sizes[0] == (v.height // 2, v.width // 2)
+        assert coarse.offsets[-1] < full.offsets[-1] / 3 and set(coarse.has) == set(full.has)
+        assert a.report["coarse_to_fine"] == [{"factor": 2, "until_iteration": 6, "size": [v.width // 2,
+                                                                                           v.height // 2]}]
+        used = []
+        real = Trainer.bank_now
+        monkeypatch.setattr(Trainer, "bank_now", lambda self: used.append(real(self)) or used[-1])
+        a.train(progress=False)
+        assert [b is coarse for b in used] == [True] * 6 + [False] * 6
+        assert all(np.isfinite(s.means).all() for s in a.sets.values())
+        b = Trainer(tmp_path / "b", tiny_cfg(**kw), scene=spec, log=lambda *a: None)
+        _interrupt_at(b, monkeypatch, 3)
+        with pytest.raises(KeyboardInterrupt):
+            b.train(progress=False)
+        b2 = Trainer(tmp_path / "b", tiny_cfg(**kw), resume=True, log=lambda *a: None)
+        assert b2.it == 4 and b2.coarse[0][0] == 6
+        b2.train(progress=False)
+        for role in a.sets:
+            for f in RAW_FIELDS:
+                assert np.array_equal(getattr(a.sets[role], f), getattr(b2.sets[role], f)), (role, f)
+    finally:
+        dr.set_thread_count(threads)
+    with pytest.raises(ConfigError, match="coarse_to_fine"):
+        tiny_cfg(coarse_to_fine="2:0.5,4:0.2")
+    with pytest.raises(ConfigError, match="smaller than a 8 x 8 patch"):
+        Trainer(tmp_path / "c", tiny_cfg(iterations=4, patch=8, coarse_to_fine="4:0.5"), scene=spec,
+                log=lambda *a: None)
+    assert not (tmp_path / "c").exists()

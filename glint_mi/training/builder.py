@@ -44,6 +44,12 @@ def check_patch(cfg, ds) -> None:
         raise ConfigError(f"'patch' = {cfg.patch}: a {cfg.patch} x {cfg.patch} patch does not fit in training view "
                           f"'{small.name}' ({small.width} x {small.height} at downscale {cfg.downscale}); use "
                           f"--set patch={max(3, min(small.width, small.height))} or a smaller downscale.")
+    for f, _ in cfg.pyramid():  # coarse_to_fine's levels: the dataset read at f x the downscale (sizes floor)
+        w, h = small.width // f, small.height // f
+        if cfg.patch > min(w, h):
+            raise ConfigError(f"'coarse_to_fine' = {cfg.coarse_to_fine!r}: at 1/{f} of the run's size training view "
+                              f"'{small.name}' is {w} x {h}, smaller than a {cfg.patch} x {cfg.patch} patch: use a "
+                              f"smaller factor or patch.")
 
 
 def assemble(tr, resume: bool) -> None:
@@ -64,6 +70,7 @@ def assemble(tr, resume: bool) -> None:
             glass_of(v)
     tr.bank = training_inputs(tr.ds, cfg, "transmission" in tr.sets, tr.report, tr.log,
                               getattr(tr, "_resume_affine", None))  # set by _load_checkpoint only
+    coarse_banks(tr)
     if not resume:
         glass_cue_check(tr)  # may give the run the 3dgs profile (another kernel): the strategy is built after it
         tr.strategy = Strategy.for_config(tr.cfg, tr.extent, np.random.default_rng([tr.cfg.seed, 1]))  # own stream
@@ -113,6 +120,26 @@ def fresh(tr):
         {"scene": str(tr.scene_spec.path), "dataset": str(tr.ds.root), "dataset_options": tr.ds.options,
          "dataset_notes": tr.ds.notes, "sparse": str(tr.ds.sparse) if tr.ds.sparse else None,
          "tracks_distorted": tr.ds.tracks_distorted}, indent=1))
+
+def coarse_banks(tr) -> None:
+    """``coarse_to_fine``: the ray banks the early iterations draw from (tr.coarse: [(until iteration, bank)],
+    coarsest first; empty without it). Each is the run's dataset read at factor x its downscale, with the same SfM
+    points and tracks, and its inputs prepared as the full-size bank's (priors aligned, the see-through cue, the SfM
+    depth)."""
+    tr.coarse = []
+    for f, until in tr.cfg.pyramid():
+        ds = load_dataset(tr.ds.root, **{**tr.ds.options, "downscale": tr.cfg.downscale * f})
+        ds.points, ds.colors, ds.sparse, ds.tracks_distorted = (tr.ds.points, tr.ds.colors, tr.ds.sparse,
+                                                                tr.ds.tracks_distorted)
+        small = min(ds.train_views, key=lambda v: min(v.width, v.height))  # checked against the patch before
+        bank = training_inputs(ds, tr.cfg, "transmission" in tr.sets, {}, log=lambda *a: None)
+        tr.coarse.append((int(round(until * tr.cfg.iterations)), bank))
+        tr.report.setdefault("coarse_to_fine", []).append(
+            {"factor": f, "until_iteration": tr.coarse[-1][0], "size": [small.width, small.height]})
+    if tr.coarse:
+        tr.log("coarse to fine: " + ", ".join(f"1/{f} size until iteration {it}" for (f, _), (it, _) in
+                                              zip(tr.cfg.pyramid(), tr.coarse)))
+
 
 def set_budget(tr):
     """epochs -> iterations from the training set's size (recomputed identically on resume)."""

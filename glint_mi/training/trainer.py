@@ -184,6 +184,13 @@ class Trainer:
             st.setdefault(term.name, getattr(c, term.weight) > 0 and starts)
         return st
 
+    def bank_now(self):
+        """The ray bank this iteration draws from: a coarser one early with ``coarse_to_fine``, else the run's."""
+        for until, bank in getattr(self, "coarse", ()):
+            if self.it < until:
+                return bank
+        return self.bank
+
     def render_depth(self, flat: np.ndarray, vid: np.ndarray):
         """The interface's planar depth and accumulated alpha at training pixels (``flat`` rows of the bank, their
         view indices ``vid``), numpy, without gradient."""
@@ -211,7 +218,7 @@ class Trainer:
 
         c, phase = self.cfg, self.phase
         with phase("sample"):  # the draws in numpy (3 numbers a patch), the rays and targets gathered on the device
-            b = self.bank.sample_device(self.rng, c.patches, c.patch)
+            b = self.bank_now().sample_device(self.rng, c.patches, c.patch)
             ray, fwd = mi.Ray3f(b.origin, b.direction), b.axes[2]
         need = {"trans_direct"} if "transmission" in st["traced"] else set()
         active = mi.Bool(True)
