@@ -273,3 +273,46 @@ def test_shellbvh_traversal_renders_as_kbuffer():
     finally:
         dr.set_thread_count(threads)
     np.testing.assert_array_equal(grads["shellbvh"], grads["kbuffer"])
+
+
+@BITWISE
+def test_the_device_march_with_numpy_standing_in_for_cupy(monkeypatch):
+    """The k-buffer march's device branch (CuPy arrays by DLPack, the set's query on them, the streams waited for)
+    run here with numpy in CuPy's place and the host shell BVH as the device set: the same image as the host march,
+    bit for bit. What only a GPU can check is left: CuPy's own DLPack hand-over and the kernel itself."""
+    import sys
+    import types
+
+    import glint_mi_plugins.glint_composite as gc
+    from test_native import _render
+
+    ref = _render(3, traversal="shellbvh", kbuffer_k=5)
+    fake = types.ModuleType("cupy")
+    for name in ("stack", "full", "arange", "maximum", "where", "float32", "uint32", "int64"):
+        setattr(fake, name, getattr(np, name))
+    calls = {"dlpack": 0, "sync": 0}
+
+    def from_dlpack(x):
+        calls["dlpack"] += 1
+        return np.from_dlpack(x)
+
+    class Stream:
+        def synchronize(self):
+            calls["sync"] += 1
+
+    fake.from_dlpack = from_dlpack
+    fake.cuda = types.SimpleNamespace(get_current_stream=lambda: Stream())
+    monkeypatch.setitem(sys.modules, "cupy", fake)
+
+    class DeviceStandIn(native.BvhShellSet):
+        xp_name = "cupy"
+
+    real = gc.GaussianSetRef.native
+    monkeypatch.setattr(gc.GaussianSetRef, "native", lambda self, engine="embree": _as_device(real(self, engine)))
+
+    def _as_device(s):
+        s.__class__ = DeviceStandIn
+        return s
+
+    np.testing.assert_array_equal(_render(3, traversal="shellbvh", kbuffer_k=5), ref)
+    assert calls["dlpack"] > 0 and calls["sync"] > 0
