@@ -86,8 +86,10 @@ class GaussianSetRef:
 
 
 def _cupy(x):
-    """A Dr.Jit CUDA array as a CuPy array (DLPack, no copy)."""
+    """A Dr.Jit CUDA array as a CuPy array (DLPack, no copy), once Dr.Jit's stream has written it."""
     import cupy
+    dr.eval(x)
+    dr.sync_thread()
     return cupy.from_dlpack(x)
 
 
