@@ -536,3 +536,36 @@ def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
                              "--out", str(out)]) == 0
     level, lower = out.read_text().split("### lower")
     assert "**Stays.**" in level and "**Reverts.**" in lower and "Adopted" not in level + lower
+
+
+def test_gpu_budget_command_dry_run(tmp_path):
+    """benchmarks/gpu_budget.py, the one-call GPU command of issue 65 (here on LLVM, a tiny room): the room rendered
+    with the SfM points of the same room made elsewhere, a calibration that sets one epoch budget for every method,
+    the three methods trained on it, and a table that names the variant, the budget and each run's Gaussians."""
+    src = tmp_path / "sfm"
+    r = subprocess.run([sys.executable, "-m", "glint_mi.dataset", "make", str(src), "--seed", "21", "--preset", "tiny",
+                        "--size", "40x24", "--views", "6", "--spp", "2", "--priors", "none"], capture_output=True,
+                       text=True, cwd=ROOT, timeout=600)
+    assert r.returncode == 0, r.stderr
+    scene = src / "scene_021"
+    meta = json.loads((scene / "meta.json").read_text())
+    # a stand-in for --sfm known (pycolmap takes a minute): points inside the room, the mode recorded
+    rng = np.random.default_rng(0)
+    lo, hi = np.array(meta["case_lo"]) - 1.0, np.array(meta["case_hi"]) + 1.0
+    pts = rng.uniform(lo, hi, (300, 3))
+    (scene / "sparse" / "0" / "points3D.txt").write_text(
+        "".join(f"{i + 1} {x:.4f} {y:.4f} {z:.4f} 128 128 128 0.5\n" for i, (x, y, z) in enumerate(pts)))
+    (scene / "meta.json").write_text(json.dumps({**meta, "sfm": {"mode": "known", "points3D": 300}}))
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "benchmarks/gpu_budget.py", "--sfm", str(src), "--seed", "21", "--scenes", "1",
+                        "--size", "40x24", "--views", "6", "--spp", "4", "--minutes", "1.5", "--calibrate", "4",
+                        "--preset", "tiny", "--methods", "glint,3dgs", "--out", str(out)], capture_output=True,
+                       text=True, cwd=ROOT, timeout=600)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    md = (out / "gpu_budget.md").read_text()
+    assert "variant llvm_ad_rgb" in md and "epochs** a run" in md
+    rows = list(csv.DictReader(open(out / "results.csv")))
+    assert {x["method"] for x in rows} == {"glint", "3dgs"} and all(int(x["gaussians"]) > 0 for x in rows)
+    cfg = json.loads((out / "bench" / "runs" / "scene_021" / "glint" / "config.json").read_text())
+    budget = float(md.split("**")[1].split()[0])
+    assert cfg["run"]["epochs"] == budget and cfg["densify"]["densify_top"] == 0.12
