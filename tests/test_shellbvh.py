@@ -17,6 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from conftest import BITWISE
+from test_native import _entries  # the float64 brute force
 from glint_mi import native
 from glint_mi.native import cuda
 
@@ -78,27 +79,13 @@ def _same_as_embree(data, extent, o, d, ks=(1, 5, 64)):
     return walk
 
 
-def _brute(data, extent, o, d):
-    """float64: (entry t, prim) of every shell with exit > 0 along (o, d), sorted."""
-    R = Rotation.from_quat(data[:, 6:10].astype(np.float64)).as_matrix()
-    s = data[:, 3:6].astype(np.float64) * extent
-    ol = np.einsum("nji,nj->ni", R, o.astype(np.float64)[None] - data[:, :3]) / s
-    dl = np.einsum("nji,j->ni", R, d.astype(np.float64)) / s
-    a, b, c = (dl ** 2).sum(1), (ol * dl).sum(1), (ol ** 2).sum(1) - 1
-    disc = b * b - a * c
-    ok = disc > 0
-    sq = np.sqrt(np.where(ok, disc, 0))
-    t0, t1 = (-b - sq) / a, (-b + sq) / a
-    idx = np.nonzero(ok & (t1 > 0))[0]
-    return sorted(zip(t0[idx], idx))
-
-
 def test_lists_equal_embree_and_float64_on_random_sets(rng):
     for n, extent in ((1, 2.0), (7, 2.0), (3000, 1.5)):
         data = _set(rng, n)
         o, d = _rays(rng, 400)
         prims, _ = _same_as_embree(data, extent, o, d)
-        same = [prims[r] == [p for _, p in _brute(data, extent, o[r], d[r])] for r in range(len(o))]
+        o64, d64 = o.astype(np.float64), d.astype(np.float64)
+        same = [prims[r] == [p for _, p in _entries(data, extent, o64[r], d64[r])] for r in range(len(o))]
         assert np.mean(same) >= 0.99, (n, np.mean(same))
         assert sum(map(len, prims)) > (0 if n < 10 else 5 * len(o))
 
