@@ -39,7 +39,8 @@ def _drjit_dir() -> Path:
 
 def build(verbose: bool = False) -> Path:
     """Compile SOURCES into LIBRARY (atomically: concurrent builds cannot leave a half-written file). No fused
-    multiply-adds (-ffp-contract=off): adam.cpp must round as numpy does."""
+    multiply-adds (-ffp-contract=off): adam.cpp must round as numpy does. -fno-math-errno lets sqrt be one
+    instruction (the shell test's square root is never of a negative; results are the same)."""
     cxx = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++") or shutil.which("clang++")
     if not cxx:
         raise RuntimeError("no C++ compiler (g++, c++ or clang++; or set CXX)")
@@ -51,7 +52,7 @@ def build(verbose: bool = False) -> Path:
         raise RuntimeError(f"the drjit wheel at {dr_dir} has no nanothread header/library")
     fd, tmp = tempfile.mkstemp(prefix=".libglint_kbuffer.", suffix=".so", dir=LIBRARY.parent)
     os.close(fd)
-    cmd = [cxx, "-O2", "-std=c++17", "-ffp-contract=off", "-shared", "-fPIC", "-pthread", f"-I{HERE}",
+    cmd = [cxx, "-O2", "-std=c++17", "-ffp-contract=off", "-fno-math-errno", "-shared", "-fPIC", "-pthread", f"-I{HERE}",
            f"-I{mi_dir / 'include'}",
            f"-I{dr_dir / 'include'}", *map(str, SOURCES), "-o", tmp, f"-L{mi_dir}", "-lembree3", f"-Wl,-rpath,{mi_dir}",
            f"-L{dr_dir}", "-lnanothread", f"-Wl,-rpath,{dr_dir}"]
@@ -246,8 +247,9 @@ class BvhShellSet(ShellSet):
         return int(sizes[3])
 
     def arrays(self):
-        """(nodes uint8 [M, 32], order uint32 [N], shells float64 [N, 12]): the tree as a device reads it (each node
-        three float32 lows, an int32 index, three float32 highs, an int32 count: see ``shellbvh.h``)."""
+        """(nodes uint8 [M, 32], order uint32 [N], shells float64 [N, 12] by slot): the tree as a device reads it
+        (each node three float32 lows, an int32 index, three float32 highs, an int32 count; each shell its centre and
+        its world-to-unit-sphere matrix: see ``shellbvh.h``)."""
         import numpy as np
         sizes = np.zeros(4, np.int64)
         self._lib.sb_sizes(self.handle, sizes.ctypes.data)

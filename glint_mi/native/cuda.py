@@ -109,11 +109,10 @@ class CudaShellSet:
         if not self.dynamic or len(data) != self.n:
             raise ValueError(f"glint_mi.native.cuda: refit needs a dynamic set of the same size ({self.n} Gaussians"
                              f"{'' if self.dynamic else ', built static'}; got {len(data)}): build a new set")
-        self._launch("glint_shell_fill", self.n, data, np.int32(self.n), np.float32(self.extent), self.shells,
-                     self.lo, self.hi)
+        self._launch("glint_shell_fill", self.n, data, self.order, np.int32(self.n), np.float32(self.extent),
+                     self.shells, self.lo, self.hi)
         for ids in reversed(self.levels):
-            self._launch("glint_shell_refit_level", len(ids), self.nodes, self.order, self.lo, self.hi, ids,
-                         np.int32(len(ids)))
+            self._launch("glint_shell_refit_level", len(ids), self.nodes, self.lo, self.hi, ids, np.int32(len(ids)))
 
     def query(self, o, d, t_prev, p_prev, active, k: int, threads: int = 0, out=None):
         """As :meth:`glint_mi.native.ShellSet.query`, on CuPy arrays (k <= MAX_K)."""

@@ -22,8 +22,8 @@ constexpr int BINS = 16;      // SAH bins per axis
 constexpr int MAX_DEPTH = GLINT_BVH_STACK - 2;  // the traversal's stack holds one node a level
 
 struct Bvh {
-    std::vector<Shell> shells;
-    std::vector<float> lo, hi;      // [n, 3] boxes of the shells
+    std::vector<Shell> shells;      // in slot order (a leaf's shells together): slot j holds prim order[j]
+    std::vector<float> lo, hi;      // [n, 3] boxes of the shells, by prim while building, then by slot
     std::vector<Node> nodes;
     std::vector<uint32_t> order;
     int depth = 0;
@@ -51,13 +51,16 @@ int bin_of(float c, float c0, float scale) {  // a NaN centroid (a broken Gaussi
     return f >= 0.f ? std::min(BINS - 1, (int) f) : 0;
 }
 
+// The shells and boxes of n Gaussians: by prim (before a build: order empty), or by slot (a refit of a built tree).
 void fill(Bvh &b, const float *data, int n, float extent) {
     b.shells.resize(n);
     b.lo.resize(3 * (size_t) n);
     b.hi.resize(3 * (size_t) n);
-    for (int i = 0; i < n; ++i)
-        glint_bvh::make_shell(data + 10 * (size_t) i, extent, b.shells[i], &b.lo[3 * (size_t) i],
-                              &b.hi[3 * (size_t) i]);
+    const bool slots = b.order.size() == (size_t) n;
+    for (int j = 0; j < n; ++j) {
+        size_t i = slots ? b.order[j] : (size_t) j;
+        glint_bvh::make_shell(data + 10 * i, extent, b.shells[j], &b.lo[3 * (size_t) j], &b.hi[3 * (size_t) j]);
+    }
 }
 
 // Nodes [first, first + count) of order under node `at`; children are appended after it.
@@ -164,6 +167,19 @@ void build(Bvh &b) {
         return;
     }
     build_node(b, 0, 0, n, 0, cen);
+    std::vector<Shell> shells(n);  // into slot order: a leaf's shells together
+    std::vector<float> lo(3 * (size_t) n), hi(3 * (size_t) n);
+    for (int j = 0; j < n; ++j) {
+        size_t i = b.order[j];
+        shells[j] = b.shells[i];
+        for (int k = 0; k < 3; ++k) {
+            lo[3 * (size_t) j + k] = b.lo[3 * i + k];
+            hi[3 * (size_t) j + k] = b.hi[3 * i + k];
+        }
+    }
+    b.shells.swap(shells);
+    b.lo.swap(lo);
+    b.hi.swap(hi);
 }
 
 // New boxes for the same tree: children come after their parent, so walking the nodes backwards sees children first.
@@ -173,7 +189,7 @@ void refit(Bvh &b) {
         Box box;
         if (nd.count > 0) {
             for (int j = nd.index; j < nd.index + nd.count; ++j)
-                box.grow(&b.lo[3 * (size_t) b.order[j]], &b.hi[3 * (size_t) b.order[j]]);
+                box.grow(&b.lo[3 * (size_t) j], &b.hi[3 * (size_t) j]);
         } else if (b.shells.empty()) {
             continue;
         } else {  // an interior node
@@ -226,7 +242,7 @@ extern "C" {
 // A BVH over the shells of n Gaussians (data [n, 10] as the ellipsoids shape holds it).
 void *sb_build(const float *data, int n, float extent) {
     Bvh *b = new Bvh();
-    fill(*b, data, n, extent);
+    fill(*b, data, n, extent);  // by prim (no order yet); build() puts them in slot order
     build(*b);
     return b;
 }
@@ -253,7 +269,7 @@ void sb_sizes(void *h, int64_t *out) {
     out[3] = b->depth;
 }
 
-// Copies of the flat arrays (for a device): nodes [sizes[0] x 32 bytes], order, shells [n x 12 float64].
+// Copies of the flat arrays (for a device): nodes [sizes[0] x 32 bytes], order, shells [n x 12 float64] by slot.
 void sb_export(void *h, void *nodes, uint32_t *order, double *shells) {
     const Bvh *b = (const Bvh *) h;
     std::memcpy(nodes, b->nodes.data(), b->nodes.size() * sizeof(Node));

@@ -5,8 +5,8 @@
 // limit shrinks to the K-th entry and boxes beyond it are culled. The same semantics, the same float64 shell
 // arithmetic and so the same lists as the Embree k-buffer of kbuffer.cpp (which calls shell_entry below), on a BVH
 // of our own: flat nodes, children stored after their parent (a refit walks the nodes backwards), leaves holding a
-// range of `order` (the set's prim ids). The tree is built on the host (sb_build in shellbvh.cpp); only the nodes,
-// the order and the shells travel to a device, and the lists it returns do not depend on the tree, only how fast
+// range of slots (the shells stored in the tree's order, `order` giving each slot's prim id). The tree is built on
+// the host (sb_build in shellbvh.cpp); only the nodes, the order and the shells travel to a device, and the lists it returns do not depend on the tree, only how fast
 // they are found.
 //
 // Device code here: no std::, no recursion, no allocation; a fixed stack of GLINT_BVH_STACK nodes (the build caps
@@ -114,22 +114,21 @@ GLINT_HD int insert_entry(float tn, float tf, uint32_t pid, float t_prev, uint32
     return count;
 }
 
-// Slab test of a ray (origin o, 1 / direction inv) against a box over [t0, t1]: the entry, or +inf when it misses.
+// Slab test of a ray (origin o, 1 / direction inv, every component finite) against a box over [t0, t1]: the entry,
+// or +inf when it misses. A direction component of 0 has inv = +-1e30: a ray in a face's plane keeps the box.
 GLINT_HD float box_entry(const Node &n, const float o[3], const float inv[3], float t0, float t1) {
     for (int k = 0; k < 3; ++k) {
         float a = (n.lo[k] - o[k]) * inv[k], b = (n.hi[k] - o[k]) * inv[k];
-        float lo = a < b ? a : b, hi = a < b ? b : a;
-        if (lo != lo) lo = -INFINITY;  // 0 x inf: the ray lies in a face's plane; keep the box (conservative)
-        if (hi != hi) hi = INFINITY;
+        float lo = a < b ? a : b, hi = a < b ? b : a;  // (compiled to min/max instructions; a NaN is ignored)
         t0 = lo > t0 ? lo : t0;
         t1 = hi < t1 ? hi : t1;
     }
-    // float rounding of the slab products: a margin of a few ulps (boxes already hold their shells with one)
-    float m0 = t0 < 0 ? -t0 : t0, m1 = t1 < 0 ? -t1 : t1;
-    return t0 <= t1 + 1e-6f * (m0 > m1 ? m0 : m1) ? t0 : INFINITY;
+    // float rounding of the slab products: a margin of a few ulps (t0 >= 0 here; boxes hold their shells with one)
+    return t0 <= t1 * (1.0f + 1e-6f) ? t0 : INFINITY;
 }
 
-// One ray: the next (up to) K entries after (t_prev, p_prev) into t, p; returns their count.
+// One ray: the next (up to) K entries after (t_prev, p_prev) into t, p; returns their count. Leaves hold slots of
+// `shells` (stored in the tree's order, so a leaf's shells lie together); `order` maps a slot to its prim id.
 GLINT_HD int trace(const Node *nodes, const uint32_t *order, const Shell *shells, const float o[3], const float d[3],
                    float t_prev, uint32_t p_prev, int K, float *t, uint32_t *p) {
     float inv[3];
@@ -139,9 +138,11 @@ GLINT_HD int trace(const Node *nodes, const uint32_t *order, const Shell *shells
         inv[k] = (a < 0 ? -1.0f : 1.0f) / (m > 1e-30f ? m : 1e-30f);
     }
     const float tnear = t_prev > 0.f ? t_prev : 0.f;
+    const float after = nextafterf(tnear, INFINITY);
     float tfar = INFINITY;
     int count = 0;
     int stack[GLINT_BVH_STACK];
+    float stack_t[GLINT_BVH_STACK];  // the box entry a node was pushed with (the far limit only shrinks)
     int sp = 0;
     if (box_entry(nodes[0], o, inv, tnear, tfar) == INFINITY)
         return 0;
@@ -149,15 +150,12 @@ GLINT_HD int trace(const Node *nodes, const uint32_t *order, const Shell *shells
     while (true) {
         const Node &nd = nodes[node];
         if (nd.count > 0) {
-            for (int i = 0; i < nd.count; ++i) {
-                uint32_t pid = order[nd.index + i];
+            for (int j = nd.index; j < nd.index + nd.count; ++j) {
                 float tn, tf;
-                if (shell_entry(shells[pid], o, d, tn, tf)) {
-                    count = insert_entry(tn, tf, pid, t_prev, p_prev, K, count, t, p);
-                    if (count == K) {  // boxes entered beyond the K-th entry cannot hold a nearer one
-                        float after = nextafterf(tnear, INFINITY);
+                if (shell_entry(shells[j], o, d, tn, tf)) {
+                    count = insert_entry(tn, tf, order[j], t_prev, p_prev, K, count, t, p);
+                    if (count == K)  // boxes entered beyond the K-th entry cannot hold a nearer one
                         tfar = t[K - 1] > after ? t[K - 1] : after;
-                    }
                 }
             }
         } else {
@@ -168,18 +166,20 @@ GLINT_HD int trace(const Node *nodes, const uint32_t *order, const Shell *shells
                 float u = ta; ta = tb; tb = u;
             }
             if (ta != INFINITY) {
-                if (tb != INFINITY && sp < GLINT_BVH_STACK)
-                    stack[sp++] = b;
+                if (tb != INFINITY && sp < GLINT_BVH_STACK) {
+                    stack[sp] = b;
+                    stack_t[sp++] = tb;
+                }
                 node = a;
                 continue;
             }
         }
-        // pop the next box still in front of the far limit (it may have shrunk since it was pushed)
+        // pop the next box still in front of the far limit (it may have shrunk since the box was pushed)
         node = -1;
         while (sp > 0) {
-            int c = stack[--sp];
-            if (box_entry(nodes[c], o, inv, tnear, tfar) != INFINITY) {
-                node = c;
+            --sp;
+            if (stack_t[sp] <= tfar * (1.0f + 1e-6f)) {
+                node = stack[sp];
                 break;
             }
         }

@@ -29,30 +29,28 @@ extern "C" __global__ void glint_shell_query(const glint_bvh::Node *nodes, const
     out_count[r] = (uint32_t) c;
 }
 
-// Refit on the device: new shells and boxes for the same Gaussians (data [n, 10]), then the nodes bottom-up, one
-// level at a time from the deepest (levels listed by the host: `level_nodes` holds the node ids of every level,
-// `level_start` where each begins). Launched once for the shells, then once a level.
-extern "C" __global__ void glint_shell_fill(const float *data, int n, float extent, glint_bvh::Shell *shells,
-                                            float *lo, float *hi) {
-    int i = blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= n)
+// Refit on the device: new shells and boxes for the same Gaussians (data [n, 10], by prim) into their slots, then
+// the nodes bottom-up, one launch a level from the deepest (the host lists each level's node ids).
+extern "C" __global__ void glint_shell_fill(const float *data, const uint32_t *order, int n, float extent,
+                                            glint_bvh::Shell *shells, float *lo, float *hi) {
+    int j = blockIdx.x * blockDim.x + threadIdx.x;
+    if (j >= n)
         return;
-    glint_bvh::make_shell(data + 10 * (size_t) i, extent, shells[i], lo + 3 * (size_t) i, hi + 3 * (size_t) i);
+    glint_bvh::make_shell(data + 10 * (size_t) order[j], extent, shells[j], lo + 3 * (size_t) j, hi + 3 * (size_t) j);
 }
 
-extern "C" __global__ void glint_shell_refit_level(glint_bvh::Node *nodes, const uint32_t *order, const float *lo,
-                                                   const float *hi, const int *ids, int count) {
+extern "C" __global__ void glint_shell_refit_level(glint_bvh::Node *nodes, const float *lo, const float *hi,
+                                                   const int *ids, int count) {
     int j = blockIdx.x * blockDim.x + threadIdx.x;
     if (j >= count)
         return;
     glint_bvh::Node &nd = nodes[ids[j]];
     float l[3] = {INFINITY, INFINITY, INFINITY}, h[3] = {-INFINITY, -INFINITY, -INFINITY};
     if (nd.count > 0) {
-        for (int i = nd.index; i < nd.index + nd.count; ++i) {
-            uint32_t q = order[i];
+        for (int j = nd.index; j < nd.index + nd.count; ++j) {  // the leaf's slots
             for (int k = 0; k < 3; ++k) {
-                l[k] = fminf(l[k], lo[3 * (size_t) q + k]);
-                h[k] = fmaxf(h[k], hi[3 * (size_t) q + k]);
+                l[k] = fminf(l[k], lo[3 * (size_t) j + k]);
+                h[k] = fmaxf(h[k], hi[3 * (size_t) j + k]);
             }
         }
     } else {
