@@ -13,7 +13,8 @@ The converged table then gives each method at its point over every room and seed
 
 Writes ``curves.csv`` (every run used), ``curves.md`` (the curve means and each method's point), ``converged.md``
 (the table: PSNR overall, on the glass and off it, normals, AbsRel, t IoU, Gaussians, train minutes; GLINT's
-difference to each method) and ``curves.png`` (PSNR against epochs and against Gaussians).
+difference to each method), ``curves.png`` (PSNR against epochs and against Gaussians) and ``inrun.png`` (each run's
+own test curve, ``eval_every``).
 """
 from __future__ import annotations
 
@@ -36,22 +37,29 @@ def _f(v) -> float:
 
 
 def read_runs(folder: Path) -> list[dict]:
-    """The rows of a benchmark folder's results.csv, each with its Gaussians at the end (report.json when the csv
-    has no such column)."""
+    """The finished runs of a benchmark folder: each ``runs/<scene>/<method>[@seed<k>]`` with a ``metrics.json`` (so a
+    benchmark still running is read as far as it got), else its ``results.csv``; each with its Gaussians at the end
+    (``report.json``)."""
+    out = []
+    runs = folder / "runs"
+    if runs.is_dir():
+        for m in sorted(runs.glob("*/*/metrics.json")):
+            run = m.parent
+            method, _, seed = run.name.partition("@seed")
+            met = json.loads(m.read_text())["metrics"]
+            rep = run / "report.json"
+            g = float(sum(json.loads(rep.read_text()).get("sizes", {}).values())) if rep.exists() else math.nan
+            out.append({"method": method, "scene": run.parent.name, "seed": int(seed or 0),
+                        **{k: _f(met.get(k)) for k in KEYS if k != "gaussians"}, "gaussians": g, "run": str(run)})
+        return out
     path = folder / "results.csv"
     if not path.exists():
-        raise SystemExit(f"error: {path} not found (a python -m glint_mi.benchmark output folder holds it)")
-    out = []
+        raise SystemExit(f"error: {folder} holds neither runs/*/*/metrics.json nor results.csv (a python -m "
+                         f"glint_mi.benchmark output folder)")
     with open(path) as f:
         for r in csv.DictReader(f):
-            seed = int(r["seed"])
-            run = folder / "runs" / r["scene"] / (r["method"] + (f"@seed{seed}" if seed else ""))
-            g = _f(r.get("gaussians"))
-            if not g == g or g == 0:
-                rep = run / "report.json"
-                g = float(sum(json.loads(rep.read_text()).get("sizes", {}).values())) if rep.exists() else math.nan
-            out.append({"method": r["method"], "scene": r["scene"], "seed": seed,
-                        **{k: _f(r.get(k)) for k in KEYS if k != "gaussians"}, "gaussians": g})
+            out.append({"method": r["method"], "scene": r["scene"], "seed": int(r["seed"]),
+                        **{k: _f(r.get(k)) for k in KEYS}, "run": ""})
     return out
 
 
@@ -102,7 +110,9 @@ def stopped(points: dict, capacities: list[str], tol: float):
             return e, c, "stopped gaining: " + ", ".join(
                 f"{'x2 epochs' if q[1] == c else q[1]} {g:+.2f} dB" for q, g in zip(nxt_e + nxt_c, gains))
     best = max(points, key=lambda p: psnr[p])
-    return best[0], best[1], "still gaining at the largest point run: its best point taken"
+    decidable = any(q[1] == c and q[0] == 2 * e for e, c in points for q in points)
+    return best[0], best[1], ("still gaining at every point run: its best point taken" if decidable else
+                              "undecided: no point has its next doubling run yet; its best point taken")
 
 
 def fmt(v, d):
@@ -125,7 +135,7 @@ def main() -> None:
     rooms = set(args.curve_rooms.split(",")) if args.curve_rooms else {r["scene"] for r in rows}
     args.out.mkdir(parents=True, exist_ok=True)
     with open(args.out / "curves.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=["epochs", "capacity", "method", "scene", "seed", *KEYS])
+        w = csv.DictWriter(f, fieldnames=["epochs", "capacity", "method", "scene", "seed", *KEYS], extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
     md = [f"Curves on {', '.join(sorted(rooms))} (seed 0; a method's points use the rooms it has at all of them).",
@@ -202,6 +212,41 @@ def main() -> None:
     a2.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(args.out / "curves.png", dpi=110)
+    inrun_figure(rows, methods, rooms, args.out / "inrun.png")
+
+
+def inrun_figure(rows, methods, rooms, path: Path) -> None:
+    """Test PSNR and Gaussians against epochs inside each run (its convergence.csv, ``eval_every``), mean of the curve
+    rooms at seed 0, one panel per (epochs, capacity) run length: where a run itself stops gaining. A curve inside a
+    run is not a shorter run (the schedule's fractions scale with the run), so the budget curves above decide."""
+    import matplotlib.pyplot as plt
+
+    groups = sorted({(r["epochs"], r["capacity"]) for r in rows})
+    fig, axes = plt.subplots(2, len(groups), figsize=(4.2 * len(groups), 6.5), squeeze=False)
+    for gi, (e, c) in enumerate(groups):
+        for i, m in enumerate(methods):
+            curves = []
+            for r in rows:
+                f = Path(r["run"]) / "convergence.csv"
+                if (r["method"], r["epochs"], r["capacity"], r["seed"]) == (m, e, c, 0) and r["scene"] in rooms \
+                        and f.exists():
+                    with open(f) as fh:
+                        curves.append([(float(x["epoch"]), float(x["psnr"]), float(x["gaussians"]))
+                                       for x in csv.DictReader(fh)])
+            n = min((len(cv) for cv in curves), default=0)
+            if not n:
+                continue
+            ep = [statistics.fmean(cv[j][0] for cv in curves) for j in range(n)]
+            for row, k in ((0, 1), (1, 2)):
+                axes[row][gi].plot(ep, [statistics.fmean(cv[j][k] for cv in curves) for j in range(n)], "-o",
+                                   color=f"C{i}", ms=3, label=f"{m} ({len(curves)} rooms)")
+        axes[0][gi].set_title(f"runs of {e:g} epochs, {c}")
+        axes[1][gi].set_xlabel("epoch")
+        axes[0][gi].legend(fontsize=7)
+    axes[0][0].set_ylabel("test PSNR (dB)")
+    axes[1][0].set_ylabel("Gaussians")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
 
 
 if __name__ == "__main__":
