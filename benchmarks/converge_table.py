@@ -127,6 +127,8 @@ def main() -> None:
     ap.add_argument("--capacities", default="default,grow,wide", help="capacity labels, smallest first")
     ap.add_argument("--curve-rooms", default="", help="comma list of rooms for the curves (default: every room)")
     ap.add_argument("--tol", type=float, default=0.2)
+    ap.add_argument("--priors", type=Path, help="a benchmark folder with the `priors` row (the prior maps scored): "
+                                                "the table gains it, and GLINT's normals and AbsRel against it")
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
     rows = gather(args.specs)
@@ -168,6 +170,21 @@ def main() -> None:
                      f"{fmt(mean(rs, 'normal_mae'), 1)} | {fmt(mean(rs, 'normal_mae_glass'), 1)} | "
                      f"{fmt(mean(rs, 'absrel'), 3)} | {fmt(mean(rs, 'absrel_glass'), 3)} | {fmt(mean(rs, 't_iou'), 2)} | "
                      f"{fmt(mean(rs, 'gaussians'), 0)} | {fmt(mean(rs, 'train_s') / 60, 1)} |")
+    if args.priors is not None:
+        pri = {r["scene"]: r for r in read_runs(args.priors) if r["method"] == "priors"}
+        rs = [pri[s_] for s_ in sorted({r["scene"] for r in rows}) if s_ in pri]
+        if rs:
+            table.append(f"| the priors themselves | - | {len(rs)} rooms | - | - | - | {fmt(mean(rs, 'normal_mae'), 1)} | "
+                         f"{fmt(mean(rs, 'normal_mae_glass'), 1)} | {fmt(mean(rs, 'absrel'), 3)} | "
+                         f"{fmt(mean(rs, 'absrel_glass'), 3)} | - | - | - |")
+        if "glint" in at:
+            pairs = [(r, pri[r["scene"]]) for r in at["glint"] if r["scene"] in pri]
+            if pairs:
+                ratio = lambda k: statistics.fmean(a[k] / b[k] for a, b in pairs if b[k] > 0)
+                worse = [a["scene"] for a, b in pairs if a["normal_mae"] > b["normal_mae"] or a["absrel"] > b["absrel"]]
+                table += ["", f"GLINT against its priors ({len(pairs)} runs): normals {ratio('normal_mae'):.2f}x, "
+                          f"AbsRel {ratio('absrel'):.2f}x (mean of per-run ratios); worse than the priors in "
+                          f"{', '.join(worse) if worse else 'none'}"]
     if "glint" in at:
         table += ["", "GLINT against each method at their points, on the (room, seed) runs both have (PSNR overall / "
                   "on glass / off glass, dB; normal MAE, deg):", ""]
