@@ -21,7 +21,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kbuffer.cpp"
 SOURCES = (SOURCE, HERE / "shellbvh.cpp", HERE / "adam.cpp")
-HEADERS = (HERE / "shellbvh.h",)
+HEADERS = (HERE / "shellbvh.h", HERE / "raybatch.h")
 LIBRARY = HERE / "libglint_kbuffer.so"
 _lib = None
 _why = ""

@@ -8,14 +8,13 @@
 // (t < 0) and is listed first, so no walk back is needed. The ray/ellipsoid quadratic is solved in double. The shell,
 // its quadratic and the buffer's insertion rule are shellbvh.h's, which our own BVH (shellbvh.cpp, and on a device
 // shellbvh_cuda.cu) uses too: both list the same entries.
-// Rays are handed out in blocks to Dr.Jit's own worker threads (its nanothread pool): after a Dr.Jit kernel those
-// workers spin for a while, and threads of our own would share the cores with them (measured: 2 threads of our own
-// ran no faster than 1 inside a training step).
+// Rays are handed out in blocks to Dr.Jit's own worker threads (raybatch.h).
 // Built by `python -m glint_mi.native` (make does it); used by plugins/glint_integrator.py (traversal=kbuffer).
 #include "shellbvh.h"
 
+#include "raybatch.h"
+
 #include <embree3/rtcore.h>
-#include <nanothread/nanothread.h>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -142,39 +141,28 @@ void kb_free(void *h) {
 
 }  // extern "C"
 
-namespace {
+extern "C" {
 
 // For each active ray: the K nearest shell entries (t, prim) after (t_prev, p_prev) among shells whose exit lies
 // ahead of the origin (shells around the origin have t < 0). Sorted by (t, prim); count per ray.
-struct Query {
-    const Set *set;
-    int nrays, K;
-    const float *o, *d, *t_prev;
-    const uint32_t *p_prev;
-    const uint8_t *active;
-    uint32_t *out_p;
-    float *out_t;
-    uint32_t *out_count;
-};
-
-void query_rays(const Query &w, int r0, int r1) {
-    for (int r = r0; r < r1; ++r) {
-        w.out_count[r] = 0;
-        if (!w.active[r])
-            continue;
+void kb_query(void *h, int nrays, const float *o, const float *d, const float *t_prev, const uint32_t *p_prev,
+              const uint8_t *active, int K, uint32_t *out_p, float *out_t, uint32_t *out_count, int nthreads) {
+    const Set *set = (const Set *) h;
+    const glint_native::RayBatch w{nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
+    glint_native::run(w, [&](int r) {
         Ctx cx;
         rtcInitIntersectContext(&cx.ctx);
-        cx.prims = w.set->prims.data();
-        cx.K = w.K;
+        cx.prims = set->prims.data();
+        cx.K = K;
         cx.count = 0;
-        cx.t = w.out_t + (size_t) r * w.K;
-        cx.p = w.out_p + (size_t) r * w.K;
-        cx.t_prev = w.t_prev[r];
-        cx.p_prev = w.p_prev[r];
+        cx.t = out_t + (size_t) r * K;
+        cx.p = out_p + (size_t) r * K;
+        cx.t_prev = t_prev[r];
+        cx.p_prev = p_prev[r];
         RTCRayHit rh;
-        rh.ray.org_x = w.o[3 * r]; rh.ray.org_y = w.o[3 * r + 1]; rh.ray.org_z = w.o[3 * r + 2];
-        rh.ray.dir_x = w.d[3 * r]; rh.ray.dir_y = w.d[3 * r + 1]; rh.ray.dir_z = w.d[3 * r + 2];
-        rh.ray.tnear = std::max(0.f, w.t_prev[r]);
+        rh.ray.org_x = o[3 * r]; rh.ray.org_y = o[3 * r + 1]; rh.ray.org_z = o[3 * r + 2];
+        rh.ray.dir_x = d[3 * r]; rh.ray.dir_y = d[3 * r + 1]; rh.ray.dir_z = d[3 * r + 2];
+        rh.ray.tnear = std::max(0.f, t_prev[r]);
         cx.tnear = rh.ray.tnear;
         rh.ray.tfar = std::numeric_limits<float>::infinity();
         rh.ray.mask = 0xFFFFFFFF;
@@ -182,35 +170,9 @@ void query_rays(const Query &w, int r0, int r1) {
         rh.ray.time = 0;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(w.set->scene, &cx.ctx, &rh);
-        w.out_count[r] = cx.count;
-    }
-}
-
-constexpr int BLOCK = 64;  // rays per work unit: small enough to balance dark and busy parts of an image
-
-void query_block(uint32_t index, void *payload) {
-    const Query &w = *(const Query *) payload;
-    int r0 = (int) index * BLOCK;
-    query_rays(w, r0, std::min(w.nrays, r0 + BLOCK));
-}
-
-}  // namespace
-
-extern "C" {
-
-void kb_query(void *h, int nrays, const float *o, const float *d, const float *t_prev, const uint32_t *p_prev,
-              const uint8_t *active, int K, uint32_t *out_p, float *out_t, uint32_t *out_count, int nthreads) {
-    // nthreads <= 1: on the calling thread; else on the pool (its own size, Dr.Jit's thread count)
-    Query w{(const Set *) h, nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
-    if (nthreads <= 1 || nrays <= BLOCK) {
-        query_rays(w, 0, nrays);
-        return;
-    }
-    // on Dr.Jit's pool (nullptr: the default pool, the one its LLVM backend launches kernels on)
-    uint32_t blocks = (uint32_t) ((nrays + BLOCK - 1) / BLOCK);
-    Task *task = task_submit_dep(nullptr, nullptr, 0, blocks, query_block, &w, sizeof(Query), nullptr, 1);
-    task_wait_and_release(task);
+        rtcIntersect1(set->scene, &cx.ctx, &rh);
+        return cx.count;
+    }, nthreads);
 }
 
 }

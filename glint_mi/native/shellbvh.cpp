@@ -2,8 +2,7 @@
 // on Dr.Jit's thread pool. The same tree, as flat arrays (sb_export), is what a device traverses with the same
 // header (shellbvh_cuda.cu).
 #include "shellbvh.h"
-
-#include <nanothread/nanothread.h>
+#include "raybatch.h"
 
 #include <algorithm>
 #include <cmath>
@@ -204,37 +203,6 @@ void refit(Bvh &b) {
     }
 }
 
-struct Query {
-    const Bvh *b;
-    int nrays, K;
-    const float *o, *d, *t_prev;
-    const uint32_t *p_prev;
-    const uint8_t *active;
-    uint32_t *out_p;
-    float *out_t;
-    uint32_t *out_count;
-};
-
-void query_rays(const Query &w, int r0, int r1) {
-    for (int r = r0; r < r1; ++r) {
-        w.out_count[r] = 0;
-        if (!w.active[r])
-            continue;
-        w.out_count[r] = (uint32_t) glint_bvh::trace(w.b->nodes.data(), w.b->order.data(), w.b->shells.data(),
-                                                     w.o + 3 * (size_t) r, w.d + 3 * (size_t) r, w.t_prev[r],
-                                                     w.p_prev[r], w.K, w.out_t + (size_t) r * w.K,
-                                                     w.out_p + (size_t) r * w.K);
-    }
-}
-
-constexpr int BLOCK = 64;
-
-void query_block(uint32_t index, void *payload) {
-    const Query &w = *(const Query *) payload;
-    int r0 = (int) index * BLOCK;
-    query_rays(w, r0, std::min(w.nrays, r0 + BLOCK));
-}
-
 }  // namespace
 
 extern "C" {
@@ -280,18 +248,17 @@ void sb_export(void *h, void *nodes, uint32_t *order, double *shells) {
 // As kb_query (kbuffer.cpp): per active ray the next K shell entries after (t_prev, p_prev), sorted by (t, prim).
 void sb_query(void *h, int nrays, const float *o, const float *d, const float *t_prev, const uint32_t *p_prev,
               const uint8_t *active, int K, uint32_t *out_p, float *out_t, uint32_t *out_count, int nthreads) {
-    Query w{(const Bvh *) h, nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
-    if (w.b->shells.empty()) {
+    const Bvh *b = (const Bvh *) h;
+    if (b->shells.empty()) {  // (its one node is no tree to walk)
         std::memset(out_count, 0, sizeof(uint32_t) * (size_t) nrays);
         return;
     }
-    if (nthreads <= 1 || nrays <= BLOCK) {
-        query_rays(w, 0, nrays);
-        return;
-    }
-    uint32_t blocks = (uint32_t) ((nrays + BLOCK - 1) / BLOCK);
-    Task *task = task_submit_dep(nullptr, nullptr, 0, blocks, query_block, &w, sizeof(Query), nullptr, 1);
-    task_wait_and_release(task);
+    const glint_native::RayBatch w{nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
+    glint_native::run(w, [&](int r) {
+        return glint_bvh::trace(b->nodes.data(), b->order.data(), b->shells.data(), o + 3 * (size_t) r,
+                                d + 3 * (size_t) r, t_prev[r], p_prev[r], K, out_t + (size_t) r * K,
+                                out_p + (size_t) r * K);
+    }, nthreads);
 }
 
 }  // extern "C"
