@@ -200,19 +200,20 @@ def test_reused_list_buffers_change_nothing(monkeypatch):
         query(shells, *args, out=(np.empty((4, 8), np.int64), np.empty((4, 8), np.float32), np.empty(4, np.uint32)))
 
 
+def _opacity_grads(seed, **props):
+    """d(sum of the image) / d(the interface's opacities) of _scene(seed) rendered with ``props``."""
+    scene = _scene(np.random.default_rng(seed), **props)
+    params = mi.traverse(scene)
+    key = "integrator.interface.opacities"
+    dr.enable_grad(params[key])
+    params.update()
+    dr.backward(dr.sum(mi.render(scene, params, seed=0), axis=None))
+    return np.array(dr.grad(params[key])).ravel()
+
+
 @needs_native
 def test_kbuffer_gradients_equal_bvh_gradients():
-    grads = {}
-    for tr in ("kbuffer", "bvh"):
-        scene = _scene(np.random.default_rng(5), traversal=tr)
-        params = mi.traverse(scene)
-        key = "integrator.interface.opacities"
-        dr.enable_grad(params[key])
-        params.update()
-        img = mi.render(scene, params, seed=0)
-        dr.backward(dr.sum(img, axis=None))
-        grads[tr] = np.array(dr.grad(params[key])).ravel()
-    g, r = grads["kbuffer"], grads["bvh"]
+    g, r = _opacity_grads(5, traversal="kbuffer"), _opacity_grads(5, traversal="bvh")
     assert np.abs(g - r).max() <= 0.02 * np.abs(r).max()
 
 

@@ -86,16 +86,13 @@ def load():
         _why = str(exc)
         return None
     vp, i, f = ctypes.c_void_p, ctypes.c_int, ctypes.c_float
-    lib.kb_build.restype, lib.kb_build.argtypes = vp, [vp, i, f, i]
-    lib.kb_refit.restype, lib.kb_refit.argtypes = i, [vp, vp, i, f]
-    lib.kb_free.restype, lib.kb_free.argtypes = None, [vp]
-    lib.kb_query.restype = None
-    lib.kb_query.argtypes = [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
+    lib.kb_build.restype, lib.kb_build.argtypes = vp, [vp, i, f, i]  # (+ dynamic)
     lib.sb_build.restype, lib.sb_build.argtypes = vp, [vp, i, f]
-    lib.sb_refit.restype, lib.sb_refit.argtypes = i, [vp, vp, i, f]
-    lib.sb_free.restype, lib.sb_free.argtypes = None, [vp]
-    lib.sb_query.restype = None
-    lib.sb_query.argtypes = [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
+    for engine in ("kb", "sb"):  # Embree's k-buffer, the shell BVH: the same refit, query and free
+        fn = lambda name: getattr(lib, f"{engine}_{name}")
+        fn("refit").restype, fn("refit").argtypes = i, [vp, vp, i, f]
+        fn("free").restype, fn("free").argtypes = None, [vp]
+        fn("query").restype, fn("query").argtypes = None, [vp, i, vp, vp, vp, vp, vp, i, vp, vp, vp, i]
     lib.sb_sizes.restype, lib.sb_sizes.argtypes = None, [vp, vp]
     lib.sb_export.restype, lib.sb_export.argtypes = None, [vp, vp, vp, vp]
     i64, d = ctypes.c_int64, ctypes.c_double
@@ -161,17 +158,13 @@ class ShellSet:
         self.extent, self.dynamic = float(extent), bool(dynamic)
         self.handle = self._build()
 
+    PREFIX = "kb"  # the library's functions for this engine: <PREFIX>_build, _refit, _query, _free
+
+    def _c(self, name: str):
+        return getattr(self._lib, f"{self.PREFIX}_{name}")
+
     def _build(self):
         return self._lib.kb_build(self.data.ctypes.data, len(self.data), self.extent, int(self.dynamic))
-
-    def _refit(self, data) -> int:
-        return self._lib.kb_refit(self.handle, data.ctypes.data, len(data), self.extent)
-
-    def _query(self, *args) -> None:
-        self._lib.kb_query(self.handle, *args)
-
-    def _free(self) -> None:
-        self._lib.kb_free(self.handle)
 
     def __len__(self) -> int:
         return len(self.data)
@@ -184,7 +177,7 @@ class ShellSet:
             raise ValueError(f"glint_mi.native: refit needs a dynamic set of the same size ({len(self.data)} "
                              f"Gaussians{'' if self.dynamic else ', built static'}; got {len(data)}): build a new "
                              f"ShellSet")
-        if self._refit(data) != 0:
+        if self._c("refit")(self.handle, data.ctypes.data, len(data), self.extent) != 0:
             raise RuntimeError("glint_mi.native: the refit refused the data")
         self.data = data
 
@@ -210,13 +203,13 @@ class ShellSet:
                     a.flags.c_contiguous and a.flags.writeable for a in out):
                 raise ValueError(f"glint_mi.native: query's out must be writeable C-contiguous arrays uint32 [{n}, "
                                  f"{k}], float32 [{n}, {k}], uint32 [{n}]")
-        self._query(n, o.ctypes.data, d.ctypes.data, t_prev.ctypes.data, p_prev.ctypes.data,
+        self._c("query")(self.handle, n, o.ctypes.data, d.ctypes.data, t_prev.ctypes.data, p_prev.ctypes.data,
                            act.ctypes.data, k, prims.ctypes.data, ts.ctypes.data, count.ctypes.data, int(threads))
         return prims, ts, count
 
     def __del__(self):
         if getattr(self, "handle", None) and self._lib is not None:
-            self._free()
+            self._c("free")(self.handle)
             self.handle = None
 
 
@@ -227,34 +220,28 @@ class BvhShellSet(ShellSet):
 
     :meth:`arrays` gives the flat tree (nodes, order, shells) that a device uploads."""
 
+    PREFIX = "sb"
+
     def _build(self):
         return self._lib.sb_build(self.data.ctypes.data, len(self.data), self.extent)
 
-    def _refit(self, data) -> int:
-        return self._lib.sb_refit(self.handle, data.ctypes.data, len(data), self.extent)
-
-    def _query(self, *args) -> None:
-        self._lib.sb_query(self.handle, *args)
-
-    def _free(self) -> None:
-        self._lib.sb_free(self.handle)
-
-    def depth(self) -> int:
-        """The tree's depth (its root is at 0); the traversal's stack holds one node a level."""
+    def _sizes(self):
+        """(nodes, slots, shells, depth) of the tree."""
         import numpy as np
         sizes = np.zeros(4, np.int64)
         self._lib.sb_sizes(self.handle, sizes.ctypes.data)
-        return int(sizes[3])
+        return tuple(int(x) for x in sizes)
+
+    def depth(self) -> int:
+        """The tree's depth (its root is at 0); the traversal's stack holds one node a level."""
+        return self._sizes()[3]
 
     def arrays(self):
         """(nodes uint8 [M, 32], order uint32 [N], shells float64 [N, 12] by slot): the tree as a device reads it
         (each node three float32 lows, an int32 index, three float32 highs, an int32 count; each shell its centre and
         its world-to-unit-sphere matrix: see ``shellbvh.h``)."""
         import numpy as np
-        sizes = np.zeros(4, np.int64)
-        self._lib.sb_sizes(self.handle, sizes.ctypes.data)
-        nodes = np.zeros((int(sizes[0]), 32), np.uint8)
-        order = np.zeros(int(sizes[1]), np.uint32)
-        shells = np.zeros((int(sizes[2]), 12), np.float64)
+        m, slots, n, _ = self._sizes()
+        nodes, order, shells = np.zeros((m, 32), np.uint8), np.zeros(slots, np.uint32), np.zeros((n, 12), np.float64)
         self._lib.sb_export(self.handle, nodes.ctypes.data, order.ctypes.data, shells.ctypes.data)
         return nodes, order, shells
