@@ -117,7 +117,8 @@ def main(argv=None) -> int:
     if rc != 0:
         print(f"error: the calibration run failed (rc {rc}); see {log}", file=sys.stderr)
         return 1
-    from glint_mi.benchmark import DEFAULT_VARIANT, config_for
+    from glint_mi.config import DEFAULT_VARIANT
+    from glint_mi.methods import config_for
     rays_per_it = config_for("glint", args.preset, DEFAULT_VARIANT).rays_per_iteration()
     with open(cal / "results.csv") as f:
         cal_row = next(csv.DictReader(f))

@@ -279,6 +279,8 @@ def test_error_scale_sweeps_prior_quality():
         assert changed == set(ERROR_FIELDS[name]), name
     with pytest.raises(ValueError, match="positive"):
         scale_errors(MODELS["realistic"](), 0.0)
+    with pytest.raises(ValueError, match="89 deg"):  # a normal error past what can be drawn: refused, not clipped
+        scale_errors(MODELS["realistic-v1"](), 6.0)
     views = [_view(i) for i in range(3)]
     for model in ("realistic", "realistic-v1"):
         base = MODELS[model]()

@@ -134,8 +134,12 @@ def main(argv=None) -> int:
         except (ValueError, AssertionError):
             ap.error(f"--size {args.size}: give WIDTHxHEIGHT, each >= 8 (e.g. 320x180)")
         size = dict(width=w, height=h)
-    if args.prior_error_scale is not None and not (0 < args.prior_error_scale < float("inf")):
-        ap.error(f"--prior-error-scale {args.prior_error_scale}: give a positive factor (1: the model's own errors)")
+    if args.prior_error_scale is not None:
+        from glint_mi.dataset.priors import MODELS, scale_errors
+        try:  # before any rendering
+            scale_errors(MODELS[args.prior_model](), args.prior_error_scale)
+        except ValueError as e:
+            ap.error(f"--prior-error-scale {args.prior_error_scale}: {e} (1: the model's own errors)")
     if args.sfm_from is not None and not args.sfm_from.is_dir():
         ap.error(f"--sfm-from {args.sfm_from}: not a folder (it holds scene_<seed>/ folders generated with --sfm known)")
     if args.sfm_from is not None and args.sfm not in (None, "known"):

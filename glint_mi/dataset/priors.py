@@ -476,8 +476,9 @@ def scale_errors(c, scale: float):
     for f in ERROR_FIELDS[model_name(c)]:
         v = getattr(out, f)
         setattr(out, f, tuple(scale * x for x in v) if isinstance(v, tuple) else scale * v)
-    if isinstance(out, PerViewRealistic):
-        out.normal_mae_deg = min(out.normal_mae_deg, 89.0)
+    if isinstance(out, PerViewRealistic) and out.normal_mae_deg >= 89.0:  # refused, not clipped
+        raise ValueError(f"scale {scale} asks realistic-v1 for a {out.normal_mae_deg:.0f} deg normal error; the most it "
+                         f"can draw is < 89 deg (scale < {89.0 / c.normal_mae_deg:.2f})")
     return out
 
 
