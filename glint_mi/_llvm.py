@@ -84,6 +84,12 @@ def install_pth() -> str:
 
     path = os.path.join(sysconfig.get_paths()["purelib"], PTH_NAME)
     with open(path, "w") as f:
-        f.write("import glint_mi._llvm as _glint_llvm; _glint_llvm.configure_environment()\n")
+        f.write(PTH_LINE)
     return path
+
+
+# the hook runs inside Python's start-up (site), where a KeyboardInterrupt is a "Fatal Python error" with a traceback:
+# a Ctrl-C that lands in it ends the process with one line and status 130, as it would a moment later
+PTH_LINE = ("import os, sys; exec('try:\\n import glint_mi._llvm as _glint_llvm; _glint_llvm.configure_environment()"
+            "\\nexcept KeyboardInterrupt:\\n sys.stderr.write(\"interrupted\\\\n\"); os._exit(130)')\n")
 

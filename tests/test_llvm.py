@@ -55,3 +55,17 @@ def test_old_llvm_message_points_at_the_installed_one(monkeypatch):
     with pytest.raises(_llvm.LLVMError, match="imported before glint_mi") if _llvm.candidate_libraries() else \
             pytest.raises(_llvm.LLVMError, match="karellen"):
         _llvm.check_llvm()
+
+
+def test_the_startup_hook_turns_ctrl_c_into_one_line_and_status_130():
+    """The .pth hook runs inside Python's start-up, where a KeyboardInterrupt is a fatal error with a traceback
+    (seen when Ctrl-C came 0.05 s into a process on a loaded machine): it exits 130 with one line instead."""
+    import subprocess
+    import sys
+
+    stub = ("import sys, types; m = types.ModuleType('glint_mi._llvm'); "
+            "m.configure_environment = lambda: (_ for _ in ()).throw(KeyboardInterrupt()); "
+            "sys.modules['glint_mi._llvm'] = m; import glint_mi; glint_mi._llvm = m; ")
+    r = subprocess.run([sys.executable, "-c", stub + f"exec({_llvm.PTH_LINE!r})"], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 130 and r.stderr == "interrupted\n", (r.returncode, r.stderr)
