@@ -293,8 +293,8 @@ class TrainConfig:
         checks)."""
         given = dict(run=run, model=model, render=render, optim=optim, losses=losses, schedule=schedule,
                      densify=densify, evaluation=evaluation)
-        for name, cls in LAYERS.items():
-            object.__setattr__(self, name, given[name] if given[name] is not None else cls())
+        for name, cls in LAYERS.items():  # copies: a config never shares a layer (dataclasses.replace passes them)
+            object.__setattr__(self, name, dataclasses.replace(given[name]) if given[name] is not None else cls())
         for key, value in flatten(fields, "TrainConfig").items():
             if key not in FIELD_LAYER:
                 raise TypeError(f"TrainConfig has no field '{key}'")

@@ -75,3 +75,16 @@ def test_fields_by_path():
     for what in (*PRESETS.values(), *VARIANTS.values(), *(m.overrides for m in METHODS.values())):
         assert all(k.split(".")[0] in LAYERS for k in what), what
     assert METHODS["3dgs"].overrides["model.kernel"] == "ellipsoid" and PRESETS["tiny"]["run.iterations"] == 300
+
+
+def test_a_config_copied_with_a_change_leaves_the_original_alone():
+    """dataclasses.replace(cfg, field=...) hands the layers to __init__, which copies them: the change lands in the
+    copy only (it used to write into the layer both configs shared)."""
+    import dataclasses
+
+    from glint_mi.config import TrainConfig
+
+    c = TrainConfig.for_preset("tiny", normal_weight="uniform")
+    d = dataclasses.replace(c, normal_weight="near", prior_layer="interface")
+    assert (c.normal_weight, c.prior_layer) == ("uniform", "nearer")
+    assert (d.normal_weight, d.prior_layer) == ("near", "interface") and d.losses is not c.losses
