@@ -491,3 +491,65 @@ def test_the_objective_is_its_table_of_terms(tmp_path, monkeypatch):
     monkeypatch.setattr(objective, "TERMS", tuple(two))
     part = objective.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
     assert part["total"] == pytest.approx(full["l1"] + full["dssim"], rel=1e-6) and part["depth"] == 0.0
+
+
+def test_prior_conflict_projection_keeps_the_prior_only_where_the_photos_do_not_oppose():
+    """project_conflicts (PCGrad per Gaussian and column group): a row whose prior gradient opposes the photometric
+    one keeps only the prior's part orthogonal to it; a row where they agree, or the photos are indifferent, keeps
+    the prior's gradient; `data`'s three groups (position, inverse scales, quaternion) are judged apart."""
+    from glint_mi.training.device_step import CONFLICT_GROUPS, project_conflicts
+
+    rng = np.random.default_rng(3)
+    n = 64
+    photo = rng.normal(size=(n, 10))
+    prior = rng.normal(size=(n, 10))
+    photo[:5] = 0.0  # rows the photos do not see
+    out, removed, total = project_conflicts(_f(photo.ravel()), _f(prior.ravel()), n, CONFLICT_GROUPS["data"])
+    got = np.array(out).reshape(n, 10)
+    want = prior.copy()
+    for a, b in CONFLICT_GROUPS["data"]:
+        p, r = photo[:, a:b], prior[:, a:b]
+        dot, pp = np.sum(p * r, 1), np.sum(p * p, 1)
+        coef = np.where((dot < 0) & (pp > 0), dot / np.where(pp > 0, pp, 1), 0)
+        want[:, a:b] = r - coef[:, None] * p
+        assert np.all(np.sum(p * want[:, a:b], 1) > -1e-6)  # no group opposes the photos any more
+        assert 0 < np.count_nonzero(dot < 0) < n  # both kinds of rows are in the test
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(got[:5], prior[:5], rtol=1e-6)
+    assert removed[0] == pytest.approx(np.sum((want - prior) ** 2), rel=1e-4)
+    assert total[0] == pytest.approx(np.sum(prior ** 2), rel=1e-4)
+    # a whole row as one group (opacity: one column - the prior's gradient is dropped where its sign differs)
+    out1, *_ = project_conflicts(_f(photo[:, 0]), _f(prior[:, 0]), n)
+    np.testing.assert_allclose(np.array(out1), np.where(photo[:, 0] * prior[:, 0] < 0, 0, prior[:, 0]), atol=1e-6)
+
+
+def test_prior_conflict_off_and_project_split_the_same_gradient(tmp_path):
+    """With prior_conflict: project the objective gives the photometric terms' and the prior terms' adjoints apart:
+    they sum to the adjoints of one objective (off), and their two replays to the gradient of one replay; a step
+    then sets each parameter's gradient to the photos' plus the projected priors', and logs the share removed."""
+    from glint_mi.training.device_step import project_conflicts
+
+    c = TrainConfig.for_preset("tiny", iterations=200, components="interface", prior_conflict="project")
+    tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
+    assert st["depth"] and st["normal"]
+    n_views = len(tr.bank.views)
+    terms, pair, _ = O.batch_objective(c, b, out, st, ray, fwd, n_views, tr.extent)
+    one_c = TrainConfig.for_preset("tiny", iterations=200, components="interface")
+    terms1, one, _ = O.batch_objective(one_c, b, out, st, ray, fwd, n_views, tr.extent)
+    assert isinstance(pair, tuple) and not isinstance(one, tuple)
+    assert terms["total"] == pytest.approx(terms1["total"], rel=1e-6)
+    assert terms["depth"] > 0 and terms["normal"] > 0
+    for k in ("rgb", "depth", "normal"):
+        s = np.array(pair[0][k]) + np.array(pair[1][k])
+        np.testing.assert_allclose(s, np.array(one[k]), rtol=1e-5, atol=1e-9)
+    assert np.abs(np.array(pair[1]["rgb"])).max() == 0  # the prior terms read no colour
+    active = mi.Bool(True)
+    photo = tr._replay(ray, active, out, pair[0], fwd, None)
+    prior = tr._replay(ray, active, out, pair[1], fwd, None)
+    whole = tr._replay(ray, active, out, one, fwd, None)
+    for key, g in whole.items():
+        np.testing.assert_allclose(np.array(photo[key]) + np.array(prior[key]), np.array(g), rtol=2e-3,
+                                   atol=1e-6 * max(1e-12, float(np.abs(np.array(g)).max())))
+    # a step: the gradient it leaves is photo + projected prior, and the share removed is logged
+    row = tr.step()
+    assert 0.0 < row["prior_conflict"] < 1.0

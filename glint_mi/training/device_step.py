@@ -241,3 +241,56 @@ class DeviceUpdate:
     def read_bad(self) -> dict[str, int]:
         """Non-finite gradient entries zeroed so far, per set (reads back)."""
         return {role: int(s.bad[0]) for role, s in self.sets.items()}
+
+
+# the renderer's parameter arrays split into the groups prior_conflict: project compares, as (first, end) columns of
+# a row: `data` holds position (0:3), the shell's inverse scales (3:6) and the quaternion (6:10)
+CONFLICT_GROUPS = {"data": ((0, 3), (3, 6), (6, 10))}
+
+
+def project_conflicts(photo, prior, n: int, groups=None):
+    """PCGrad on one parameter array of n rows: in every row (a Gaussian) and column group of it, where the prior
+    terms' gradient ``prior`` points against the photometric gradient ``photo`` (negative dot product), the prior's
+    component along ``photo`` is removed; elsewhere it is kept. Returns (the projected prior gradient, the squared
+    norm removed, the prior's squared norm), the norms width-1 arrays (nothing is read back)."""
+    photo, prior = mi.Float(photo), mi.Float(prior)
+    width = dr.width(prior)
+    if n == 0 or width == 0:
+        return prior, mi.Float(0.0), mi.Float(0.0)
+    cols = width // n
+    out = mi.Float(prior)
+    for first, end in (groups or ((0, cols),)):
+        m = end - first
+        i = _index(n * m)
+        src = (i // m) * cols + first + i % m
+        p, r = (dr.gather(mi.Float, photo, src), dr.gather(mi.Float, prior, src)) if m != cols else (photo, prior)
+        dot, pp = dr.block_sum(p * r, m), dr.block_sum(p * p, m)
+        coef = dr.select((dot < 0) & (pp > 0), dot / dr.maximum(pp, 1e-30), 0.0)
+        projected = r - dr.repeat(coef, m) * p
+        if m == cols:
+            out = projected
+        else:
+            dr.scatter(out, projected, src)
+    removed = dr.sum(dr.square(out - prior))
+    return out, removed, dr.sum(dr.square(prior))
+
+
+def set_projected_gradients(params, photo: dict, prior: dict, roles, sign=False) -> object:
+    """Set each parameter's gradient to ``photo`` + the prior gradient projected by :func:`project_conflicts`
+    (``photo``, ``prior``: gradients by parameter key, ``role.array``, of two replays). Returns the share of the
+    prior gradient's squared norm removed over the sets ``roles`` (a width-1 array)."""
+    removed, total = mi.Float(0.0), mi.Float(0.0)
+    for role in roles:
+        n = dr.width(photo.get(f"{role}.opacities", mi.Float()))
+        for k in PARAM_KEYS:
+            key = f"{role}.{k}"
+            if key not in photo:
+                continue
+            if sign:
+                r = dr.select(photo[key] * prior[key] < 0, 0.0, prior[key])
+                rem, tot = dr.sum(dr.square(r - prior[key])), dr.sum(dr.square(prior[key]))
+            else:
+                r, rem, tot = project_conflicts(photo[key], prior[key], n, CONFLICT_GROUPS.get(k))
+            dr.set_grad(params[key], photo[key] + r)
+            removed, total = removed + rem, total + tot
+    return removed / dr.maximum(total, 1e-30)
