@@ -144,10 +144,6 @@ class LossConfig:
     w_normal: float = 0.3
     prior_decay: float = 1.0             # from this fraction of the run the depth and normal prior weights fall
     #                                      linearly to 0 at its end; 1.0 = constant weights (the paper)
-    prior_conflict: str = "off"          # off (the paper) | project: the depth and normal priors' gradient loses,
-    #                                      per Gaussian and parameter array, its component against the photometric
-    #                                      terms' gradient where the two oppose (PCGrad): the priors steer where the
-    #                                      photos are indifferent or agree; a second backward replay a step
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
@@ -469,7 +465,6 @@ class TrainConfig:
         need(0 < self.cue_point_share <= 1, "cue_point_share", "is a share of a point's views: (0, 1]")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
         need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
-        need(self.prior_conflict in ("off", "project", "sign"), "prior_conflict", "use off (the paper), project or sign")
         need(self.no_glass in ("3dgs", "3dgs+sfm", "glint"), "no_glass", "use 3dgs, 3dgs+sfm or glint")
         need(self.t_gate_votes in ("all", "geometric"), "t_gate_votes", "use all (L_trans's opaque mask) or geometric")
         need(self.blend in ("fresnel", "envgs", "alpha", "refgs"), "blend",

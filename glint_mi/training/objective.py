@@ -210,14 +210,24 @@ TERMS = (
 )
 
 
-PRIOR_TERMS = ("depth", "normal")  # the monocular priors' terms (prior_conflict: project takes their gradient apart)
+def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: float, read: bool = True):
+    """The training objective on one ray batch: every term of :data:`TERMS` that the stage ``st`` switches on,
+    weighted by ``c``, the config's ``losses`` layer (every field the terms read is there; a whole TrainConfig reads
+    through), on the buffers ``out`` traced for the batch ``b``.
 
+    Returns (terms: weighted value per name of LOSS_NAMES, adjoints: per traced buffer, for the integrator's
+    replay, stats: L_trans mask coverage and each component's share of the image energy, and with ``t_raise:
+    masks`` the rays where t may rise, for the replay).
 
-def _evaluate(c, b, out, st, ray, fwd, n_views, extent, stats, keep=None):
-    """The terms the stage switches on (and ``keep(name)`` allows) on fresh leaves of the traced buffers: their
-    weighted values and the adjoints of the buffers they read."""
-    from glint_mi.training.batch import device_neighbours
+    The terms and the statistics are reduced on the device. ``read`` (default) returns them as floats; with
+    ``read=False`` they stay width-1 Dr.Jit arrays, scheduled for the next evaluation (the backward's), so a training
+    step reads nothing back until it is logged (:func:`glint_mi.training.losses.read_values`)."""
+    from glint_mi.training.batch import DeviceBatch, device_neighbours, to_device
 
+    if not isinstance(b, DeviceBatch):
+        b = to_device(b)
+    terms = {k: 0.0 for k in LOSS_NAMES}
+    stats = {}
     with dr.resume_grad():
         rgb = L._leaf(mi.Color3f(out["rgb"]))
         depth, normal, t = L._leaf(out["depth"]), L._leaf(out["normal"]), L._leaf(out["transparency"])
@@ -239,47 +249,15 @@ def _evaluate(c, b, out, st, ray, fwd, n_views, extent, stats, keep=None):
         prior_w = dr.opaque(mi.Float, st.get("prior_scale", 1.0)) if c.prior_decay < 1.0 else 1.0
         x = Inputs(c, b, out, st, ray, fwd, n_views, extent, device_neighbours(b.patches, b.patch), rgb, depth,
                    normal, t, A, leaves, stats, near_c, near_p, w_near, trans, behind_ok, prior_w)
-        parts = {term.name: term.fn(x) for term in TERMS if term.when(x) and (keep is None or keep(term.name))}
-        if parts:
-            dr.backward(sum(parts.values()))
+        parts = {term.name: term.fn(x) for term in TERMS if term.when(x)}
+        total = sum(parts.values())
+        dr.backward(total)
         adjoints = {}
         for k, v in leaves.items():
             adjoints[k] = tuple(dr.grad(y) for y in v) if isinstance(v, tuple) else dr.grad(v)
-    return parts, adjoints
-
-
-def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: float, read: bool = True):
-    """The training objective on one ray batch: every term of :data:`TERMS` that the stage ``st`` switches on,
-    weighted by ``c``, the config's ``losses`` layer (every field the terms read is there; a whole TrainConfig reads
-    through), on the buffers ``out`` traced for the batch ``b``.
-
-    Returns (terms: weighted value per name of LOSS_NAMES, adjoints: per traced buffer, for the integrator's
-    replay, stats: L_trans mask coverage and each component's share of the image energy, and with ``t_raise:
-    masks`` the rays where t may rise, for the replay). With ``prior_conflict: project`` and a prior term on, the
-    adjoints are a pair: the other terms' and those of :data:`PRIOR_TERMS`, for two replays.
-
-    The terms and the statistics are reduced on the device. ``read`` (default) returns them as floats; with
-    ``read=False`` they stay width-1 Dr.Jit arrays, scheduled for the next evaluation (the backward's), so a training
-    step reads nothing back until it is logged (:func:`glint_mi.training.losses.read_values`)."""
-    from glint_mi.training.batch import DeviceBatch, to_device
-
-    if not isinstance(b, DeviceBatch):
-        b = to_device(b)
-    terms = {k: 0.0 for k in LOSS_NAMES}
-    stats = {}
-    groups = [None]
-    if c.prior_conflict in ("project", "sign"):  # the prior terms' adjoints apart, for the trainer's projection
-        groups = [lambda n: n not in PRIOR_TERMS, lambda n: n in PRIOR_TERMS]
-    adjoints, total = [], 0.0
-    for keep in groups:
-        parts, adj = _evaluate(c, b, out, st, ray, fwd, n_views, extent, stats, keep)
-        if parts or not adjoints:
-            adjoints.append(adj)
         for k, v in parts.items():
             terms[k] = dr.detach(v)
-            total = total + dr.detach(v)
-    terms["total"] = total
-    adjoints = adjoints[0] if len(adjoints) == 1 else tuple(adjoints)
+        terms["total"] = dr.detach(total)
     stats.update(L.component_stats(out, b.rgb))  # what each component contributes (evidence for components: auto)
     values = {**terms, **{k: v for k, v in stats.items() if k != "t_raise"}}
     if read:

@@ -71,7 +71,7 @@ def write_log(tr):
     if rows:
         keys = ["iteration", "stage", *LOSS_NAMES, "rays_per_s", "gaussians", "share_reflection",
                 "share_transmission", "mask_t", "gap_behind", "gap_front", "gain_reflection",
-                "gain_transmission", "budget_full", "prior_conflict"]
+                "gain_transmission", "budget_full"]
         buf = io.StringIO()
         w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
         w.writeheader()

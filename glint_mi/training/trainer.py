@@ -232,32 +232,11 @@ class Trainer:
             terms, adjoints, stats = objective.batch_objective(c.losses, b, out, st, ray, fwd, len(self.bank.views),
                                                                self.extent, read=read)
         with phase("backward"):
-            t_raise = stats.pop("t_raise", None)
-            if isinstance(adjoints, tuple):  # prior_conflict: project - the photos' and the priors' replays apart
-                from glint_mi.training.device_step import set_projected_gradients
-
-                photo = self._replay(ray, active, out, adjoints[0], fwd, t_raise)
-                prior = self._replay(ray, active, out, adjoints[1], fwd, t_raise)
-                share = set_projected_gradients(self.params, photo, prior, st["traced"], c.prior_conflict == "sign")
-                stats["prior_conflict"] = objective.read_values({"s": share})["s"] if read else share
-            else:
-                self.integ.backward(ray, active, out, adjoints, forward=fwd, t_raise=t_raise)
+            self.integ.backward(ray, active, out, adjoints, forward=fwd, t_raise=stats.pop("t_raise", None))
             dr.eval()  # run the replay now (the gradients are read next anyway): its time is the backward's
         with phase("update"):
             self._update(st)
         return {**terms, **stats, "budget_full": full}
-
-    def _replay(self, ray, active, out, adjoints, fwd, t_raise) -> dict:
-        """One backward replay of ``adjoints``: the parameter gradients it leaves, taken out of the parameters."""
-        import drjit as dr
-
-        self.integ.backward(ray, active, out, adjoints, forward=fwd, t_raise=t_raise)
-        grads = {}
-        for key in (f"{role}.{k}" for role in self.sets for k in PARAM_KEYS):
-            grads[key] = dr.grad(self.params[key])
-            dr.clear_grad(self.params[key])
-        dr.eval(*grads.values())
-        return grads
 
     def settle(self, rows: list[dict] | None = None) -> None:
         """Read back the device values of ``rows`` (default: the history rows not read yet), in place, as floats:
