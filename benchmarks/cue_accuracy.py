@@ -6,7 +6,7 @@ training pixels: the share of the glass pixels the cue labels "seen through" (+1
 shares off the glass, and what the SfM depth term keeps on the glass (tracked pixels whose feature lies more than
 10 % behind the pane pull the interface behind it).
 
-    .venv/bin/python benchmarks/cue_accuracy.py DATASET [DATASET ...] [--margin 0.05] [--radius 0.04]
+    .venv/bin/python benchmarks/cue_accuracy.py DATASET [DATASET ...] [--margin 0.05] [--radius 0.04] [--photo Q]
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT))
 
 
 def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=None, depth_affine=None,
-                 votes: str = "view", point_share: float = 0.2) -> dict:
+                 votes: str = "view", point_share: float = 0.2, photo: float = 0.0) -> dict:
     """The cue's labels on and off the ground-truth glass of ``root``'s training views (shares of pixels).
     ``observations`` / ``depth_affine`` replace the dataset's SfM tracks / the SfM alignment (tests)."""
     from glint_mi.training.batch import RayBank
@@ -34,7 +34,7 @@ def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=
     else:
         bank.depth_affine = np.asarray(depth_affine, np.float64)
     obs = ds.observations() if observations is None else observations
-    rep = bank.see_through_cue(obs, margin, radius, votes, point_share)
+    rep = bank.see_through_cue(obs, margin, radius, votes, point_share, photo)
     bank.set_sfm_depth(obs)
     glass = bank.glass > 0.5
     depth = np.concatenate([np.asarray(v.load_gt()["depth"]).reshape(-1) for v in ds.train_views])
@@ -58,14 +58,17 @@ def main(argv=None) -> None:
     ap.add_argument("--radius", type=float, default=0.04, help="the cue's radius (TrainConfig.cue_radius)")
     ap.add_argument("--votes", choices=["view", "point"], default="view", help="TrainConfig.cue_votes")
     ap.add_argument("--point-share", type=float, default=0.2, help="TrainConfig.cue_point_share")
+    ap.add_argument("--photo", type=float, default=0.0, help="TrainConfig.cue_photo (0: off)")
     a = ap.parse_args(argv)
     print(f"margin {a.margin}, radius {a.radius}, votes {a.votes}"
-          + (f" (point share {a.point_share})" if a.votes == "point" else "") + "; shares of training pixels\n")
+          + (f" (point share {a.point_share})" if a.votes == "point" else "")
+          + (f", opaque votes dropped above the {a.photo:g} quantile of photo-inconsistency" if a.photo else "")
+          + "; shares of training pixels\n")
     print("| dataset | glass | +1 on glass | -1 on glass | +1 off glass | -1 off glass | SfM depth on glass "
           "(behind the pane) | SfM depth elsewhere |")
     print("|---|---|---|---|---|---|---|---|")
     for d in a.datasets:
-        r = cue_accuracy(d, a.margin, a.radius, votes=a.votes, point_share=a.point_share)
+        r = cue_accuracy(d, a.margin, a.radius, votes=a.votes, point_share=a.point_share, photo=a.photo)
         f = lambda x: "-" if not np.isfinite(x) else f"{x:.3f}"
         print(f"| {d} | {r['glass_share']:.3f} | {f(r['through_on_glass'])} | {f(r['opaque_on_glass'])} | "
               f"{f(r['through_off_glass'])} | {f(r['opaque_off_glass'])} | {r['sfm_depth_glass_pixels']} "

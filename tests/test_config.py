@@ -88,3 +88,12 @@ def test_a_config_copied_with_a_change_leaves_the_original_alone():
     d = dataclasses.replace(c, normal_weight="near", prior_layer="interface")
     assert (c.normal_weight, c.prior_layer) == ("uniform", "nearer")
     assert (d.normal_weight, d.prior_layer) == ("near", "interface") and d.losses is not c.losses
+
+
+def test_cue_photo_is_a_quantile_or_off():
+    from glint_mi.config import ConfigError, TrainConfig
+
+    assert TrainConfig.from_dict({"cue_photo": 0.75}).cue_photo == 0.75
+    for bad in (1.0, -0.1):
+        with pytest.raises(ConfigError, match=r"cue_photo.*quantile in \(0, 1\)"):
+            TrainConfig.from_dict({"cue_photo": bad})

@@ -891,6 +891,47 @@ def test_see_through_cue_point_votes(room):
         bank.see_through_cue({"any": None}, votes="pixel")
 
 
+def test_photo_inconsistency_marks_light_that_moves_with_the_view(room):
+    """photo_inconsistency: with the depth prior aligned exactly (the room's own scale and shift), the pixels of the
+    room agree with their nearest views up to misregistration; light added to the left third of each view, brighter
+    in every other view (it moves with the view, as a reflection in a pane), scores several times higher there. With
+    cue_photo the cue's opaque votes on those pixels go, the others stay."""
+    import json
+
+    from glint_mi.training.batch import RayBank, pixel_rays
+
+    ds = load_dataset(room)
+    bank = RayBank(ds.train_views, room)
+    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
+    bank.depth_affine = np.array([[rec[v.name]["depth_scale"], rec[v.name]["depth_shift"]] for v in bank.views])
+    base = bank.photo_inconsistency()
+    left = np.concatenate([(np.mgrid[0:h, 0:w][1] < w // 3).ravel() for h, w in bank.sizes])
+    for i, (h, w) in enumerate(bank.sizes):  # the moving light
+        img = bank.rgb[bank.offsets[i]:bank.offsets[i + 1]].reshape(h, w, 3)
+        img[:, : w // 3] += 0.3 * (i % 2)
+    moved = bank.photo_inconsistency()
+    ok = np.isfinite(base) & np.isfinite(moved)
+    assert ok.mean() > 0.5
+    assert np.median(moved[ok & left]) > 3 * np.median(base[ok & left])
+    assert np.median(moved[ok & left]) > 3 * np.median(moved[ok & ~left])
+    # the cue: every pixel labelled opaque (features on the surface the prior sees, everywhere)
+    obs = {}
+    for i, v in enumerate(bank.views):
+        h, w = bank.sizes[i]
+        rr, cc = np.mgrid[2:h:4, 2:w:4]
+        rr, cc = rr.ravel(), cc.ravel()
+        z = bank.prior_surface_depth(i, rr, cc)
+        keep = np.isfinite(z)
+        d = pixel_rays(v, np.stack([cc[keep], rr[keep]], -1))
+        dist = z[keep] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))
+        obs[v.name] = (np.stack([cc[keep] + 0.5, rr[keep] + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])
+    rep = bank.see_through_cue(obs, margin=0.05, radius=0.1)
+    assert np.mean(bank.cue[ok] == -1) > 0.9 and "photo" not in rep
+    rep = bank.see_through_cue(obs, margin=0.05, radius=0.1, photo=0.6)
+    assert np.mean(bank.cue[ok & left] == -1) < 0.3 and np.mean(bank.cue[ok & ~left] == -1) > 0.7
+    assert 0.3 < rep["opaque_dropped_by_photo"] < 0.5 and rep["photo"] == 0.6
+
+
 @pytest.mark.parametrize("mode", ["masks", "free"])
 def test_t_raise_follows_the_opaque_mask(room, tmp_path, monkeypatch, mode):
     """t_raise: masks hands the replay 't may rise' = not in L_trans's opaque mask, from the end of densification;

@@ -199,7 +199,7 @@ class RayBank:
         self.depth_affine = aff
 
     def see_through_cue(self, observations: dict | None, margin: float = 0.05, radius: float = 0.04,
-                        votes: str = "view", point_share: float = 0.2) -> dict:
+                        votes: str = "view", point_share: float = 0.2, photo: float = 0.0) -> dict:
         """A 3D cue for L_trans that the transmission set cannot bend (glint_mi's; the paper has only the albedo
         prior): an SfM feature tracked in a view lies on the surface that view sees, or behind it if that surface
         is glass. With the depth prior aligned to the metric SfM points (:meth:`align_depth_priors`,
@@ -212,7 +212,11 @@ class RayBank:
         ``votes``: ``view`` labels each observation by its own view's prior; ``point`` labels a 3D point seen through
         (+1 in every view that tracks it) when at least ``point_share`` of its labelled observations are: a prior that
         sees through the glass in some views (then the feature agrees with it) and the pane in others still marks
-        what lies behind the glass in all of them."""
+        what lies behind the glass in all of them.
+
+        ``photo`` in (0, 1): the opaque label is dropped (0) on the pixels whose :meth:`photo_inconsistency` is above
+        that quantile of the training pixels': a feature behind a pane agrees with a prior that sees through it, so
+        agreement alone is no evidence of an opaque surface where the photos show light that moves with the view."""
         from scipy.ndimage import distance_transform_edt
 
         self.cue = None  # until a view has evidence: L_trans keeps the paper's depth-gap rule
@@ -254,13 +258,78 @@ class RayBank:
             lab_map = np.sign(acc[iy, ix]) * (dist <= radius * w)
             cue[self.offsets[i]:self.offsets[i + 1]] = lab_map.ravel().astype(np.int8)
             n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
+        dropped = 0.0
+        if photo > 0 and used:
+            score = self.photo_inconsistency()
+            if np.isfinite(score).any():
+                moving = np.isfinite(score) & (score > np.nanquantile(score, photo)) & (cue == -1)
+                dropped = float(moving.sum() / max(int((cue == -1).sum()), 1))
+                cue[moving] = 0
         rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
                "pixels_seen_through": float(np.mean(cue == 1)), "pixels_opaque": float(np.mean(cue == -1)),
-               "margin": margin, "radius": radius, "votes": votes}
+               "margin": margin, "radius": radius, "votes": votes,
+               **({"photo": photo, "opaque_dropped_by_photo": dropped} if photo > 0 else {})}
         if not used:  # an all-zero cue would silence L_trans (no pixel has evidence)
             return {**rep, "why": "no view has tracked SfM features and an aligned depth prior"}
         self.cue = cue
         return rep
+
+    def photo_inconsistency(self, neighbours: int = 6, sigma: float = 1.0, depth_tol: float = 0.05) -> np.ndarray:
+        """Per training pixel [pixels] float32: how far its colour is from what its ``neighbours`` nearest views (by
+        camera centre) see at the same 3D point, the point placed by the depth prior aligned to SfM
+        (:meth:`prior_surface_depth`): the median, over the views that see the point (their own aligned prior
+        within ``depth_tol`` of its depth there), of the mean |c_i - c_j| of the photos blurred by ``sigma`` pixels,
+        divided by the local gradient of view i's blurred photo + 0.01 (a point placed a pixel off on a texture
+        differs for that reason alone). A diffuse surface agrees up to that misregistration; light reflected by a
+        pane moves with the view. NaN where fewer than 2 views see the point, or the view has no alignment."""
+        from scipy.ndimage import gaussian_filter, map_coordinates
+
+        out = np.full(self.offsets[-1], np.nan, np.float32)
+        if self.priors.get("depth") is None or self.depth_affine is None:
+            return out
+        V = len(self.views)
+        blur = []
+        for i in range(V):
+            h, w = self.sizes[i]
+            im = self.rgb[self.offsets[i]:self.offsets[i + 1]].reshape(h, w, 3).astype(np.float64)
+            blur.append(np.stack([gaussian_filter(im[..., c], sigma) for c in range(3)], -1))
+        centres = np.asarray(self.origins, np.float64)
+        for i, v in enumerate(self.views):
+            h, w = self.sizes[i]
+            rr, cc = np.mgrid[0:h, 0:w]
+            z = self.prior_surface_depth(i, rr.ravel(), cc.ravel())
+            ok = np.isfinite(z) & (z > 0)
+            if not ok.any():
+                continue
+            x = (cc.ravel() + 0.5 - v.K[0, 2]) / v.K[0, 0] * z
+            y = (rr.ravel() + 0.5 - v.K[1, 2]) / v.K[1, 1] * z
+            X = np.stack([x, y, z], -1) @ self.axes[i].astype(np.float64).T + centres[i]
+            d = np.linalg.norm(centres - centres[i], axis=1)
+            d[i] = np.inf
+            diffs = []
+            for j in np.argsort(d)[:min(neighbours, V - 1)]:
+                vj, (hj, wj) = self.views[j], self.sizes[j]
+                pc = (X - centres[j]) @ self.axes[j].astype(np.float64)
+                zj = pc[:, 2]
+                zs = np.where(zj > 1e-9, zj, 1.0)
+                u = vj.K[0, 0] * pc[:, 0] / zs + vj.K[0, 2] - 0.5
+                q = vj.K[1, 1] * pc[:, 1] / zs + vj.K[1, 2] - 0.5
+                inside = ok & (zj > 1e-9) & (u >= 0) & (u <= wj - 1) & (q >= 0) & (q <= hj - 1)
+                col = np.clip(np.round(u), 0, wj - 1).astype(np.int64)
+                row = np.clip(np.round(q), 0, hj - 1).astype(np.int64)
+                dj = self.prior_surface_depth(j, row, col)
+                seen = inside & np.isfinite(dj) & (np.abs(zj - dj) < depth_tol * np.where(np.isfinite(dj), dj, 1))
+                cj = np.stack([map_coordinates(blur[j][..., c], [q, u], order=1, mode="nearest") for c in range(3)],
+                              -1)
+                diffs.append(np.where(seen, np.abs(cj - blur[i].reshape(-1, 3)).mean(-1), np.nan))
+            D = np.array(diffs)
+            n = np.isfinite(D).sum(0)
+            med = np.full(len(z), np.nan)
+            some = n >= 2
+            med[some] = np.nanmedian(D[:, some], axis=0)
+            gy, gx = np.gradient(blur[i].mean(-1))
+            out[self.offsets[i]:self.offsets[i + 1]] = med / (np.hypot(gx, gy).ravel() + 0.01)
+        return out
 
     def set_sfm_depth(self, observations: dict | None) -> dict:
         """``self.sfm_depth`` [pixels] float32: the planar depth of the tracked SfM feature at each training pixel

@@ -36,7 +36,7 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
             f"{len(bank.views)} views (the others keep the per-batch fit)")
     if cfg.trans_cue != "none" and has_transmission:  # only L_trans and plausibility read it
         cue = bank.see_through_cue(ds.observations(), cfg.cue_margin, cfg.cue_radius, cfg.cue_votes,
-                                   cfg.cue_point_share)
+                                   cfg.cue_point_share, cfg.cue_photo)
         report["trans_cue"] = cue
         log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
             f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
