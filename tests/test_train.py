@@ -904,6 +904,14 @@ def test_photo_inconsistency_marks_light_that_moves_with_the_view(room):
     bank = RayBank(ds.train_views, room)
     rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
     bank.depth_affine = np.array([[rec[v.name]["depth_scale"], rec[v.name]["depth_shift"]] for v in bank.views])
+    hole = bank.priors["depth"].copy()  # an invalid prior (0) on a block of every view: NaN there, not an error
+    for i, (h, w) in enumerate(bank.sizes):
+        bank.priors["depth"][bank.offsets[i]:bank.offsets[i + 1]].reshape(h, w, -1)[: h // 4, -w // 4:] = 0
+    holed = bank.photo_inconsistency()
+    block = np.concatenate([((np.mgrid[0:h, 0:w][0] < h // 4) & (np.mgrid[0:h, 0:w][1] >= w - w // 4)).ravel()
+                            for h, w in bank.sizes])
+    assert np.isnan(holed[block]).all() and np.isfinite(holed[~block]).mean() > 0.5
+    bank.priors["depth"] = hole
     base = bank.photo_inconsistency()
     left = np.concatenate([(np.mgrid[0:h, 0:w][1] < w // 3).ravel() for h, w in bank.sizes])
     for i, (h, w) in enumerate(bank.sizes):  # the moving light

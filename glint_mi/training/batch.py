@@ -315,6 +315,7 @@ class RayBank:
                 u = vj.K[0, 0] * pc[:, 0] / zs + vj.K[0, 2] - 0.5
                 q = vj.K[1, 1] * pc[:, 1] / zs + vj.K[1, 2] - 0.5
                 inside = ok & (zj > 1e-9) & (u >= 0) & (u <= wj - 1) & (q >= 0) & (q <= hj - 1)
+                u, q = np.where(inside, u, 0.0), np.where(inside, q, 0.0)  # (NaN where the prior is not valid)
                 col = np.clip(np.round(u), 0, wj - 1).astype(np.int64)
                 row = np.clip(np.round(q), 0, hj - 1).astype(np.int64)
                 dj = self.prior_surface_depth(j, row, col)
