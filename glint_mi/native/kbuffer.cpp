@@ -148,7 +148,7 @@ extern "C" {
 void kb_query(void *h, int nrays, const float *o, const float *d, const float *t_prev, const uint32_t *p_prev,
               const uint8_t *active, int K, uint32_t *out_p, float *out_t, uint32_t *out_count, int nthreads) {
     const Set *set = (const Set *) h;
-    const glint_native::RayBatch w{nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
+    const glint_native::RayBatch w{nrays, active, out_count};
     glint_native::run(w, [&](int r) {
         Ctx cx;
         rtcInitIntersectContext(&cx.ctx);

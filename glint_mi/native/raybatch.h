@@ -11,15 +11,11 @@
 
 namespace glint_native {
 
-// Per active ray r: the next K shell entries after (t_prev[r], p_prev[r]) into out_p / out_t [r * K, ...), their
-// count into out_count[r] (0 for an inactive ray).
+// The rays of one query: which are active, and where each one's count goes (the entries themselves are written by
+// the trace, which holds the query's other arrays).
 struct RayBatch {
-    int nrays, K;
-    const float *o, *d, *t_prev;
-    const uint32_t *p_prev;
+    int nrays;
     const uint8_t *active;
-    uint32_t *out_p;
-    float *out_t;
     uint32_t *out_count;
 };
 
@@ -41,8 +37,9 @@ template <class Trace> void run_block(uint32_t index, void *payload) {
     run_rays(*job.w, *job.trace, r0, std::min(job.w->nrays, r0 + BLOCK));
 }
 
-// trace(r) lists ray r's entries and returns their count. nthreads <= 1: on the calling thread; else on the pool (its
-// own size, Dr.Jit's thread count; nullptr: the default pool, the one its LLVM backend launches kernels on).
+// trace(r) lists active ray r's entries and returns their count; an inactive ray's count is 0. nthreads <= 1: on the
+// calling thread; else on the pool (its own size, Dr.Jit's thread count; nullptr: the default pool, the one its LLVM
+// backend launches kernels on).
 template <class Trace> void run(const RayBatch &w, const Trace &trace, int nthreads) {
     if (nthreads <= 1 || w.nrays <= BLOCK) {
         run_rays(w, trace, 0, w.nrays);

@@ -253,7 +253,7 @@ void sb_query(void *h, int nrays, const float *o, const float *d, const float *t
         std::memset(out_count, 0, sizeof(uint32_t) * (size_t) nrays);
         return;
     }
-    const glint_native::RayBatch w{nrays, K, o, d, t_prev, p_prev, active, out_p, out_t, out_count};
+    const glint_native::RayBatch w{nrays, active, out_count};
     glint_native::run(w, [&](int r) {
         return glint_bvh::trace(b->nodes.data(), b->order.data(), b->shells.data(), o + 3 * (size_t) r,
                                 d + 3 * (size_t) r, t_prev[r], p_prev[r], K, out_t + (size_t) r * K,

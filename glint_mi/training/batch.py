@@ -79,6 +79,18 @@ class RayBank:
                 raise DatasetError(f"{root}: trans_masks = {glass_masks} needs {need} for every training view.")
             self.glass = np.concatenate([m.reshape(-1) for m in maps]).astype(np.float32)
 
+    def project(self, i: int, X: np.ndarray):
+        """World points ``X`` [n,3] seen from view ``i``: continuous pixel coordinates (u, v), pixel (col, row) =
+        (floor u, floor v), NaN behind the camera (z <= 1e-9), and their planar depth z (float64)."""
+        pc = (X - self.origins[i]) @ self.axes[i].astype(np.float64)  # OpenCV camera coordinates
+        z = pc[:, 2]
+        front = z > 1e-9
+        zs = np.where(front, z, 1.0)
+        K = self.views[i].K
+        u = np.where(front, K[0, 0] * pc[:, 0] / zs + K[0, 2], np.nan)
+        v = np.where(front, K[1, 1] * pc[:, 1] / zs + K[1, 2], np.nan)
+        return u, v, z
+
     def align_depth_priors(self, points: np.ndarray | None, min_points: int = 12, trials: int = 256,
                            seed: int = 0, rel: float = 0.05) -> dict:
         """Fit, once per view, the affine map prior ~ w * z + q from the metric SfM points the view sees (z their
@@ -95,12 +107,9 @@ class RayBank:
         rng = np.random.default_rng(seed)
         counts, inlier_share = [], []
         for i, v in enumerate(self.views):
-            R = self.axes[i].astype(np.float64)
-            pc = (points - self.origins[i]) @ R  # OpenCV camera coordinates
-            z = pc[:, 2]
+            u, w_, z = self.project(i, points)
             ok = z > 1e-6
-            u = v.K[0, 0] * pc[ok, 0] / z[ok] + v.K[0, 2]
-            w_ = v.K[1, 1] * pc[ok, 1] / z[ok] + v.K[1, 2]
+            u, w_ = u[ok], w_[ok]
             col, row = np.floor(u).astype(np.int64), np.floor(w_).astype(np.int64)
             inside = (col >= 0) & (col < v.width) & (row >= 0) & (row < v.height)
             zz = z[ok][inside]
@@ -294,27 +303,23 @@ class RayBank:
             im = self.rgb[self.offsets[i]:self.offsets[i + 1]].reshape(h, w, 3).astype(np.float64)
             blur.append(np.stack([gaussian_filter(im[..., c], sigma) for c in range(3)], -1))
         centres = np.asarray(self.origins, np.float64)
-        for i, v in enumerate(self.views):
+        for i in range(V):
             h, w = self.sizes[i]
             rr, cc = np.mgrid[0:h, 0:w]
             z = self.prior_surface_depth(i, rr.ravel(), cc.ravel())
             ok = np.isfinite(z) & (z > 0)
             if not ok.any():
                 continue
-            x = (cc.ravel() + 0.5 - v.K[0, 2]) / v.K[0, 0] * z
-            y = (rr.ravel() + 0.5 - v.K[1, 2]) / v.K[1, 1] * z
-            X = np.stack([x, y, z], -1) @ self.axes[i].astype(np.float64).T + centres[i]
+            dirs = self.dirs[self.offsets[i]:self.offsets[i + 1]].astype(np.float64)  # through the pixel centres
+            X = centres[i] + dirs * (z / (dirs @ self.axes[i, :, 2].astype(np.float64)))[:, None]
             d = np.linalg.norm(centres - centres[i], axis=1)
             d[i] = np.inf
             diffs = []
             for j in np.argsort(d)[:min(neighbours, V - 1)]:
-                vj, (hj, wj) = self.views[j], self.sizes[j]
-                pc = (X - centres[j]) @ self.axes[j].astype(np.float64)
-                zj = pc[:, 2]
-                zs = np.where(zj > 1e-9, zj, 1.0)
-                u = vj.K[0, 0] * pc[:, 0] / zs + vj.K[0, 2] - 0.5
-                q = vj.K[1, 1] * pc[:, 1] / zs + vj.K[1, 2] - 0.5
-                inside = ok & (zj > 1e-9) & (u >= 0) & (u <= wj - 1) & (q >= 0) & (q <= hj - 1)
+                hj, wj = self.sizes[j]
+                u, q, zj = self.project(j, X)
+                u, q = u - 0.5, q - 0.5  # pixel centres at integers (map_coordinates)
+                inside = ok & (u >= 0) & (u <= wj - 1) & (q >= 0) & (q <= hj - 1)
                 u, q = np.where(inside, u, 0.0), np.where(inside, q, 0.0)  # (NaN where the prior is not valid)
                 col = np.clip(np.round(u), 0, wj - 1).astype(np.int64)
                 row = np.clip(np.round(q), 0, hj - 1).astype(np.int64)
