@@ -199,6 +199,11 @@ class LossConfig:
     cue_photo: float = 0.0               # 0: off; q in (0, 1): no opaque vote on the pixels whose colour disagrees with
     #                                      their nearest views at the prior's depth more than the q-quantile of the
     #                                      training pixels (RayBank.photo_inconsistency; untuned, issue 66)
+    prior_photo: float = 0.0             # 0: off; q in (0, 1): the depth and normal priors are not read at the pixels
+    #                                      whose colour disagrees with their nearest views at the prior's depth more
+    #                                      than the q-quantile of the training pixels (a prior seeing through a pane
+    #                                      or off its surface places the point where the photos do not agree; the
+    #                                      photos alone decide there; untuned, issue 66)
     tau_n: float = 0.3                   # normal prior mask: supplement 0.3, release 0.5
     normal_loss: str = "cos"             # cos: the supplement's 1 - <n, p>; l1_cos: + |n - p|_1 (glint_mi's until
     #                                      2026-11-26)
@@ -467,6 +472,7 @@ class TrainConfig:
         need(self.trans_albedo in ("off", "masks"), "trans_albedo", "use off (glint_mi) or masks (the paper)")
         need(0 < self.cue_point_share <= 1, "cue_point_share", "is a share of a point's views: (0, 1]")
         need(0 <= self.cue_photo < 1, "cue_photo", "is 0 (off) or a quantile in (0, 1)")
+        need(0 <= self.prior_photo < 1, "prior_photo", "is 0 (off) or a quantile in (0, 1)")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
         need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
         need(self.no_glass in ("3dgs", "3dgs+sfm", "glint"), "no_glass", "use 3dgs, 3dgs+sfm or glint")

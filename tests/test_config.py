@@ -90,10 +90,11 @@ def test_a_config_copied_with_a_change_leaves_the_original_alone():
     assert (d.normal_weight, d.prior_layer) == ("near", "interface") and d.losses is not c.losses
 
 
-def test_cue_photo_is_a_quantile_or_off():
+@pytest.mark.parametrize("field", ["cue_photo", "prior_photo"])
+def test_photo_quantiles_are_a_quantile_or_off(field):
     from glint_mi.config import ConfigError, TrainConfig
 
-    assert TrainConfig.from_dict({"cue_photo": 0.75}).cue_photo == 0.75
+    assert getattr(TrainConfig.from_dict({field: 0.75}), field) == 0.75
     for bad in (1.0, -0.1):
-        with pytest.raises(ConfigError, match=r"cue_photo.*quantile in \(0, 1\)"):
-            TrainConfig.from_dict({"cue_photo": bad})
+        with pytest.raises(ConfigError, match=field + r".*quantile in \(0, 1\)"):
+            TrainConfig.from_dict({field: bad})

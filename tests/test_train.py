@@ -938,6 +938,19 @@ def test_photo_inconsistency_marks_light_that_moves_with_the_view(room):
     rep = bank.see_through_cue(obs, margin=0.05, radius=0.1, photo=0.6)
     assert np.mean(bank.cue[ok & left] == -1) < 0.3 and np.mean(bank.cue[ok & ~left] == -1) > 0.7
     assert 0.3 < rep["opaque_dropped_by_photo"] < 0.5 and rep["photo"] == 0.6
+    # prior_photo: the depth and normal priors go where the light moves, stay elsewhere and where nothing is scored
+    before = {k: bank.priors[k].copy() for k in ("depth", "normal")}
+    bank.device_arrays()
+    rep = bank.drop_priors_by_photo(0.6)
+    gone = (bank.priors["depth"][:, 0] == 0) & (np.abs(bank.priors["normal"]).sum(1) == 0)
+    assert gone[ok & left].mean() > 0.7 and gone[ok & ~left].mean() < 0.2 and not gone[np.isnan(moved)].any()
+    assert abs(rep["dropped"] - 0.4 * rep["scored"]) < 0.01 and rep["q"] == 0.6  # the share above the 0.6-quantile
+    kept = ~gone
+    np.testing.assert_array_equal(bank.priors["normal"][kept], before["normal"][kept])
+    dev = np.array(bank.device_arrays()["depth"])[:len(gone)]  # the device copy follows
+    np.testing.assert_array_equal(dev, bank.priors["depth"][:, 0])
+    with pytest.raises(ValueError, match="quantile"):
+        bank.drop_priors_by_photo(1.0)
 
 
 @pytest.mark.parametrize("mode", ["masks", "free"])

@@ -269,7 +269,7 @@ class RayBank:
             n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
         dropped = 0.0
         if photo > 0 and used:
-            score = self.photo_inconsistency()
+            score = self._photo_score()
             if np.isfinite(score).any():
                 moving = np.isfinite(score) & (score > np.nanquantile(score, photo)) & (cue == -1)
                 dropped = float(moving.sum() / max(int((cue == -1).sum()), 1))
@@ -336,6 +336,34 @@ class RayBank:
             gy, gx = np.gradient(blur[i].mean(-1))
             out[self.offsets[i]:self.offsets[i + 1]] = med / (np.hypot(gx, gy).ravel() + 0.01)
         return out
+
+    def _photo_score(self) -> np.ndarray:
+        """:meth:`photo_inconsistency` with its defaults, computed once for the cue and the prior mask (seconds a
+        room); again if the alignment or the depth prior is replaced (the photos of a bank do not change)."""
+        cached = getattr(self, "_photo", None)
+        if cached is None or cached[0] is not self.depth_affine or cached[1] is not self.priors.get("depth"):
+            cached = self._photo = (self.depth_affine, self.priors.get("depth"), self.photo_inconsistency())
+        return cached[2]
+
+    def drop_priors_by_photo(self, q: float) -> dict:
+        """``prior_photo``: the depth and normal priors are left out (0, which their terms read as no prior) at the
+        training pixels whose :meth:`photo_inconsistency` is above its ``q``-quantile: there the colour at the
+        prior's depth disagrees with the nearest views (light that moves with the view: a prior seeing through a
+        pane, a reflection, a prior off its surface), and the photos alone decide. Pixels the measure cannot score
+        (NaN: fewer than two views see the point) keep their priors. Call after the cue, which reads the whole prior."""
+        if not 0 < q < 1:
+            raise ValueError(f"q must be a quantile in (0, 1) (got {q!r})")
+        if self.priors.get("depth") is None or self.depth_affine is None:
+            return {"dropped": 0.0, "why": "no depth prior aligned to SfM: nothing places the point to compare"}
+        score = self._photo_score()
+        if not np.isfinite(score).any():
+            return {"dropped": 0.0, "why": "no pixel seen by two views at the prior's depth"}
+        drop = np.isfinite(score) & (score > np.nanquantile(score, q))
+        for k in ("depth", "normal"):
+            if self.priors.get(k) is not None:
+                self.priors[k] = np.where(drop[:, None], 0, self.priors[k]).astype(self.priors[k].dtype)
+        self._device = None  # the device copies hold the priors as they were
+        return {"q": q, "dropped": float(drop.mean()), "scored": float(np.isfinite(score).mean())}
 
     def set_sfm_depth(self, observations: dict | None) -> dict:
         """``self.sfm_depth`` [pixels] float32: the planar depth of the tracked SfM feature at each training pixel

@@ -41,6 +41,12 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
         log(f"L_trans SfM see-through cue: {cue.get('seen_through_observations', 0)} features seen through, "
             f"{cue.get('opaque_observations', 0)} on opaque surfaces in {cue['views']} views"
             + (f" ({cue['why']})" if "why" in cue else ""))
+    if cfg.prior_photo > 0 and bank.has & {"depth", "normal"}:  # after the cue and the alignment: both read it whole
+        pp = bank.drop_priors_by_photo(cfg.prior_photo)
+        report["prior_photo"] = pp
+        log(f"prior_photo {cfg.prior_photo}: depth and normal priors left out on {100 * pp['dropped']:.1f} % of "
+            "the training pixels (their colour moves with the view at the prior's depth)"
+            + (f" ({pp['why']})" if "why" in pp else ""))
     if cfg.w_sfm_depth > 0:
         sd = bank.set_sfm_depth(ds.observations())
         report["sfm_depth"] = sd

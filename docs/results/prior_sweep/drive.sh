@@ -1,10 +1,13 @@
 #!/bin/bash
 # The sweeps declared in README.md (issue 66, items 3 and 4), resumable: every step skips what is complete.
-#   bash docs/results/prior_sweep/drive.sh DATA OUT [PY]
+#   bash docs/results/prior_sweep/drive.sh DATA OUT [PY] [PART] [VALUES]
 # DATA: where the tuning rooms 7301 and 7302 are (generated here if missing) and the level folders go; OUT: the
 # benchmark folders. A level folder links every file of its room except priors/, which it derives itself.
+# PART: see (item 4, the see-through share; VALUES: which P, default all in the declared order), errors (item 3 at
+# the bench budget), converged (item 3 at 120 epochs with growth) or all (default). Two lanes = two calls with
+# different VALUES (each benchmark runs one Dr.Jit thread).
 set -uo pipefail
-DATA=${1:?DATA}; OUT=${2:?OUT}; PY=${3:-.venv/bin/python}
+DATA=${1:?DATA}; OUT=${2:?OUT}; PY=${3:-.venv/bin/python}; PART=${4:-all}; VALUES=${5:-1.0 0.6 0.2 0.8 0.4}
 ROOMS="7301 7302"
 run() { echo "=== $(date -u +%FT%TZ) $*"; "$@"; echo "=== rc=$? $(date -u +%FT%TZ)"; }
 for s in $ROOMS; do
@@ -19,20 +22,39 @@ level() {  # level NAME SEED ARGS...: DATA/levels/NAME/scene_SEED with its own p
   for f in "$src"/*; do [ "$(basename "$f")" = priors ] || ln -sfn "$f" "$dst/$(basename "$f")"; done
   run $PY -m glint_mi.dataset priors "$dst" --seed $s "$@"
 }
-B="$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1"
-for model in realistic realistic-v1; do
-  for f in 0.5 0.75 1 1.25 2.0; do
-    for s in $ROOMS; do level "${model}_e$f" $s --model $model --error-scale $f; done
-    run $B --data "$DATA/levels/${model}_e$f" --methods priors,glint --set epochs=40 --out "$OUT/bench_${model}_e$f"
+B="$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40"
+PP="--set prior_photo=0.75"
+if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its two addenda
+  for p in $VALUES; do
+    for s in $ROOMS; do level "see_$p" $s --model realistic --see-through $p; done
+    L="$DATA/levels/see_$p"
+    run $B --data "$L" --methods glint,3dgs,3dgs-priors --out "$OUT/see_$p"
+    run $B --data "$L" --methods glint --set cue_photo=0.75 --out "$OUT/see_${p}_cuephoto"
+    if [ "$p" = 1.0 ] || [ "$p" = 0.6 ]; then
+      run $B --data "$L" --methods glint,3dgs-priors $PP --out "$OUT/see_${p}_priorphoto"
+      run $B --data "$L" --methods glint $PP --set cue_photo=0.75 --out "$OUT/see_${p}_bothphoto"
+    fi
+    for s in $ROOMS; do
+      for q in 0 0.75; do
+        f="$OUT/see_$p/cue_accuracy_${s}_photo$q.txt"
+        [ -s "$f" ] || $PY benchmarks/cue_accuracy.py "$L/scene_$s" --margin 0.1 --votes point --photo $q > "$f"
+      done
+    done
   done
-done
-for p in 0.2 0.4 0.6 0.8 1.0; do
-  for s in $ROOMS; do level "see_$p" $s --model realistic --see-through $p; done
-  run $B --data "$DATA/levels/see_$p" --methods glint --set epochs=40 --out "$OUT/see_$p"
-done
-for model in realistic realistic-v1; do  # the converged budget (120 epochs with growth until converge_98xx decides)
-  for f in 0.5 0.75 1 1.25 2.0; do
-    run $B --data "$DATA/levels/${model}_e$f" --methods glint --set epochs=120 --set densify_top=0.12 \
-        --set densify_grad_rel=0.05 --out "$OUT/grow120_${model}_e$f"
+fi
+if [ "$PART" = errors ] || [ "$PART" = all ]; then
+  for model in realistic realistic-v1; do
+    for f in 0.5 0.75 1 1.25 2.0; do
+      for s in $ROOMS; do level "${model}_e$f" $s --model $model --error-scale $f; done
+      run $B --data "$DATA/levels/${model}_e$f" --methods priors,glint --out "$OUT/bench_${model}_e$f"
+    done
   done
-done
+fi
+if [ "$PART" = converged ] || [ "$PART" = all ]; then  # 120 epochs with growth until converge_98xx decides
+  for model in realistic realistic-v1; do
+    for f in 0.5 0.75 1 1.25 2.0; do
+      run ${B/epochs=40/epochs=120} --data "$DATA/levels/${model}_e$f" --methods glint --set densify_top=0.12 \
+          --set densify_grad_rel=0.05 --out "$OUT/grow120_${model}_e$f"
+    done
+  done
+fi
