@@ -28,7 +28,7 @@ if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its two addenda
   for p in $VALUES; do
     for s in $ROOMS; do level "see_$p" $s --model realistic --see-through $p; done
     L="$DATA/levels/see_$p"
-    run $B --data "$L" --methods glint,3dgs,3dgs-priors --out "$OUT/see_$p"
+    run $B --data "$L" --methods priors,glint,3dgs,3dgs-priors --out "$OUT/see_$p"
     run $B --data "$L" --methods glint --set cue_photo=0.75 --out "$OUT/see_${p}_cuephoto"
     if [ "$p" = 1.0 ] || [ "$p" = 0.6 ]; then
       run $B --data "$L" --methods glint,3dgs-priors $PP --out "$OUT/see_${p}_priorphoto"
