@@ -11,6 +11,13 @@ before the runs it judges (sections 1 and 5 of that README), on the mean of the 
 - PSNR rule: at least +0.3 dB of PSNR, higher in at least ``--agree`` rooms, none of the four geometry columns worse
   by more than those amounts.
 
+A room may carry a level, ``ROOM@LEVEL`` (a room under one setting of a sweep, e.g. ``7301@1.0``), which fills
+``{level}`` in the patterns; each room-level counts as a room.
+
+``--floor METHOD`` (e.g. ``priors``, the benchmark's row of the priors themselves, read from the base folder): the
+switch is adopted only where its normal MAE and AbsRel are at or under that row's in every room (GLINT never ends
+worse than its priors).
+
 ``--agree`` defaults to all rooms but one (two of three, three of four, four of five); fewer than ``--min-rooms``
 (3) rooms decide nothing.
 
@@ -87,6 +94,12 @@ def judge(pairs: dict[str, tuple], agree: int, min_rooms: int = 3) -> dict:
                 stays=within and dpsnr >= -PSNR_COST)
 
 
+def floor_check(pairs: dict, floors: dict) -> dict:
+    """{room: True/False}: the switch's normal MAE and AbsRel at or under the floor method's (rooms with a floor)."""
+    return {r: pairs[r][1]["normal_mae"] <= floors[r]["normal_mae"] and pairs[r][1]["absrel"] <= floors[r]["absrel"]
+            for r in pairs if r in floors}
+
+
 def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = False) -> str:
     rooms = sorted(pairs)
     lines = [f"### {name}", "", "| room | seeds | " + " | ".join(f"{c} (base -> switch)" for c in COLUMNS) + " |",
@@ -108,7 +121,13 @@ def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = Fa
               f"{agree} of {len(rooms)} rooms): {'passes' if v['psnr_rule'] else 'fails'}. "
               + (f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**" if v["enough"]
                  else f"**Too few rooms to decide** ({len(rooms)})."), ""]
+    if "floor" in v:  # rooms without the floor's run count as not met
+        bad = [r for r in rooms if not v["floor"].get(r, False)]
+        lines.insert(-1, f"Floor (`{v['floor_method']}`: normals and AbsRel at or under it in every room): "
+                     + (f"**not met** in {', '.join(bad)}." if bad else "met."))
     return "\n".join(lines)
+
+
 
 
 def main(argv=None) -> int:
@@ -120,10 +139,13 @@ def main(argv=None) -> int:
     ap.add_argument("--agree", type=int, default=None, help="rooms that must agree (default: all but one)")
     ap.add_argument("--min-rooms", type=int, default=3, help="fewer rooms than this decide nothing (default 3)")
     ap.add_argument("--out", type=Path, default=None, help="also write the report here (markdown)")
+    ap.add_argument("--floor", default=None, metavar="METHOD",
+                    help="a method of the base folder (e.g. priors) whose normals and AbsRel the switch must not exceed")
     ap.add_argument("--confirm", action="store_true",
                     help="the check rule: the switch is an adopted default, the base the one it replaced")
     a = ap.parse_args(argv)
     rooms = [r.strip() for r in a.rooms.split(",") if r.strip()]
+    fill = lambda pattern, r: pattern.format(room=r.partition("@")[0], level=r.partition("@")[2])
     args = list(argv if argv is not None else sys.argv[1:])
     out = [f"Tuning rule: `{' '.join(['python benchmarks/tuning_rule.py'] + args)}`", ""]
     for spec in a.switch:
@@ -131,16 +153,25 @@ def main(argv=None) -> int:
             ap.error(f"--switch {spec!r}: expected NAME=PATTERN, e.g. near='runs/q{{room}}/near'")
         name, pattern = spec.split("=", 1)
         pairs, missing = {}, []
+        floors = {}
         for r in rooms:
-            p = room_pair(Path(a.base.format(room=r)), Path(pattern.format(room=r)), r, a.method)
+            p = room_pair(Path(fill(a.base, r)), Path(fill(pattern, r)), r.partition("@")[0], a.method)
             (missing.append(r) if p is None else pairs.__setitem__(r, p))
+            if a.floor and p is not None:
+                f = seed_runs(Path(fill(a.base, r)), r.partition("@")[0], a.floor)
+                if 0 in f:
+                    floors[r] = f[0]
         if not pairs:
-            absent = [f for r in rooms for f in (a.base.format(room=r), pattern.format(room=r)) if not Path(f).is_dir()]
+            absent = [f for r in rooms for f in (fill(a.base, r), fill(pattern, r)) if not Path(f).is_dir()]
             out.append(f"### {name}\n\nno room has a finished run in both folders"
                        + (f" (no such folder: {', '.join(sorted(set(absent)))})" if absent else "") + "\n")
             continue
         agree = a.agree if a.agree is not None else max(len(pairs) - 1, 1)
-        out.append(report(name, pairs, judge(pairs, agree, a.min_rooms), agree, a.confirm))
+        verdict = judge(pairs, agree, a.min_rooms)
+        if a.floor:
+            verdict["floor"], verdict["floor_method"] = floor_check(pairs, floors), a.floor
+            verdict["adopted"] = verdict["adopted"] and all(verdict["floor"].get(r, False) for r in pairs)
+        out.append(report(name, pairs, verdict, agree, a.confirm))
         if missing:
             out.append(f"Left out (no seed finished in both folders): {', '.join(missing)}.\n")
     text = "\n".join(out)

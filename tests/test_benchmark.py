@@ -536,6 +536,25 @@ def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
                              "--out", str(out)]) == 0
     level, lower = out.read_text().split("### lower")
     assert "**Stays.**" in level and "**Reverts.**" in lower and "Adopted" not in level + lower
+    # room-levels (ROOM@LEVEL fills {level}) and the floor: the priors' row in the base folder; the switch passes the
+    # PSNR rule but its normals end over the priors' in one room-level, and a room-level without the floor's run fails
+    for r, lvl in (("1", "a"), ("2", "a"), ("1", "b")):
+        write(f"sw_{lvl}", r, 0)
+        write(f"sw_{lvl}_on", r, 0, psnr=0.5)
+        d = tmp_path / f"sw_{lvl}" / "runs" / f"scene_{r}" / "priors"
+        d.mkdir(parents=True)
+        worse = lvl == "b"  # the priors' normals better than the switch's there
+        (d / "metrics.json").write_text(json.dumps({"metrics": {**base, "normal_mae": 25.0 if worse else 35.0}}))
+    args = ["--rooms", "1@a,2@a,1@b", "--base", str(tmp_path / "sw_{level}"), "--switch",
+            f"on={tmp_path / 'sw_{level}_on'}", "--out", str(out)]
+    assert tuning_rule.main(args) == 0 and "**Adopted.**" in out.read_text() and "| 1@b |" in out.read_text()
+    assert tuning_rule.main(args + ["--floor", "priors"]) == 0
+    assert "**Not adopted.**" in out.read_text() and "**not met** in 1@b." in out.read_text()
+    write("sw_b", "2", 0)
+    write("sw_b_on", "2", 0, psnr=0.5)  # 2@b: no priors row there
+    tuning_rule.main(["--rooms", "1@a,2@a,2@b", "--base", str(tmp_path / "sw_{level}"), "--switch",
+                      f"on={tmp_path / 'sw_{level}_on'}", "--floor", "priors", "--out", str(out)])
+    assert "**not met** in 2@b." in out.read_text()
 
 
 def test_gpu_budget_command_dry_run(tmp_path):
