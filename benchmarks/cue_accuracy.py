@@ -3,7 +3,8 @@
 For each dataset (with SfM tracks, a depth prior and ground-truth glass masks) it aligns the depth prior to the SfM
 points and computes the cue exactly as a training run does (``RayBank.see_through_cue``), then counts over the
 training pixels: the share of the glass pixels the cue labels "seen through" (+1) and "opaque" (-1), the same
-shares off the glass, and what the SfM depth term keeps on the glass (tracked pixels whose feature lies more than
+shares off the glass, with ``--photo Q`` the shares above the photo-inconsistency's Q-quantile (where ``cue_photo``
+drops opaque votes and ``prior_photo`` the priors), and what the SfM depth term keeps on the glass (tracked pixels whose feature lies more than
 10 % behind the pane pull the interface behind it).
 
     .venv/bin/python benchmarks/cue_accuracy.py DATASET [DATASET ...] [--margin 0.05] [--radius 0.04] [--photo Q]
@@ -42,7 +43,13 @@ def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=
     share = lambda m, sel: float(np.mean(m[sel])) if sel.any() else float("nan")
     z = bank.sfm_depth if bank.sfm_depth is not None else np.zeros(glass.size, np.float32)
     tracked = z > 0
-    return {"dataset": str(root), "glass_share": float(glass.mean()),
+    photo_above = {}
+    if photo > 0:  # what prior_photo at the same q leaves without priors, on the glass and off it
+        score = bank._photo_score()
+        above = np.isfinite(score) & (score > np.nanquantile(score, photo)) if np.isfinite(score).any() \
+            else np.zeros(glass.size, bool)
+        photo_above = {"photo_above_on_glass": share(above, glass), "photo_above_off_glass": share(above, ~glass)}
+    return {"dataset": str(root), "glass_share": float(glass.mean()), **photo_above,
             "through_on_glass": share(cue == 1, glass), "opaque_on_glass": share(cue == -1, glass),
             "through_off_glass": share(cue == 1, ~glass), "opaque_off_glass": share(cue == -1, ~glass),
             "through_all": float(np.mean(cue == 1)), "opaque_all": float(np.mean(cue == -1)),
@@ -64,15 +71,17 @@ def main(argv=None) -> None:
           + (f" (point share {a.point_share})" if a.votes == "point" else "")
           + (f", opaque votes dropped above the {a.photo:g} quantile of photo-inconsistency" if a.photo else "")
           + "; shares of training pixels\n")
+    extra = " above q on glass | above q off glass |" if a.photo else ""
     print("| dataset | glass | +1 on glass | -1 on glass | +1 off glass | -1 off glass | SfM depth on glass "
-          "(behind the pane) | SfM depth elsewhere |")
-    print("|---|---|---|---|---|---|---|---|")
+          "(behind the pane) | SfM depth elsewhere |" + extra)
+    print("|---|---|---|---|---|---|---|---|" + "---|---|" * bool(a.photo))
     for d in a.datasets:
         r = cue_accuracy(d, a.margin, a.radius, votes=a.votes, point_share=a.point_share, photo=a.photo)
         f = lambda x: "-" if not np.isfinite(x) else f"{x:.3f}"
         print(f"| {d} | {r['glass_share']:.3f} | {f(r['through_on_glass'])} | {f(r['opaque_on_glass'])} | "
               f"{f(r['through_off_glass'])} | {f(r['opaque_off_glass'])} | {r['sfm_depth_glass_pixels']} "
-              f"({r['sfm_depth_behind_pane']}) | {r['sfm_depth_other_pixels']} |")
+              f"({r['sfm_depth_behind_pane']}) | {r['sfm_depth_other_pixels']} |"
+              + (f" {f(r['photo_above_on_glass'])} | {f(r['photo_above_off_glass'])} |" if a.photo else ""))
 
 
 if __name__ == "__main__":
