@@ -467,6 +467,11 @@ def test_cue_accuracy_counts_the_cue_against_the_glass(room, rng):
     flat = cue_accuracy(room, 0.05, 0.04, observations(1.0), affine)
     assert flat["through_on_glass"] < 0.1 and flat["opaque_on_glass"] > 0.5 * flat["opaque_off_glass"] > 0.1
     assert flat["opaque_on_glass"] > 5 * r["opaque_on_glass"]
+    # --photo q: the shares above the q-quantile of the scored pixels, on and off the glass, add up to at most 1 - q
+    q = cue_accuracy(room, 0.05, 0.04, observations(1.5), affine, photo=0.75)
+    g = q["glass_share"]
+    above = g * q["photo_above_on_glass"] + (1 - g) * q["photo_above_off_glass"]
+    assert 0.1 < above <= 0.25 + 1e-3 and "photo_above_on_glass" not in r
 
 
 def test_case_coverage_from_the_layout():
