@@ -473,6 +473,9 @@ class TrainConfig:
         need(0 < self.cue_point_share <= 1, "cue_point_share", "is a share of a point's views: (0, 1]")
         need(0 <= self.cue_photo < 1, "cue_photo", "is 0 (off) or a quantile in (0, 1)")
         need(0 <= self.prior_photo < 1, "prior_photo", "is 0 (off) or a quantile in (0, 1)")
+        for field in ("cue_photo", "prior_photo"):  # the measure places each pixel's point by the SfM-aligned prior
+            need(getattr(self, field) == 0 or self.depth_align == "sfm", field,
+                 "reads the depth prior aligned to the SfM points: use depth_align sfm, or set it to 0")
         need(self.t_raise in ("masks", "free"), "t_raise", "use masks (glint_mi) or free (the paper)")
         need(self.prior_layer in ("interface", "nearer"), "prior_layer", "use interface (the paper) or nearer")
         need(self.no_glass in ("3dgs", "3dgs+sfm", "glint"), "no_glass", "use 3dgs, 3dgs+sfm or glint")

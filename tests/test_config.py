@@ -98,3 +98,5 @@ def test_photo_quantiles_are_a_quantile_or_off(field):
     for bad in (1.0, -0.1):
         with pytest.raises(ConfigError, match=field + r".*quantile in \(0, 1\)"):
             TrainConfig.from_dict({field: bad})
+    with pytest.raises(ConfigError, match=field + r".*depth_align sfm"):
+        TrainConfig.from_dict({field: 0.75, "depth_align": "image"})
