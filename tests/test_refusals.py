@@ -439,7 +439,11 @@ def test_ctrl_c_early_in_evaluate_is_one_line(trained, tmp_path):
     """SIGINT in the first second of `evaluate` (before: a KeyboardInterrupt traceback from an import, or a
     SystemError from one in C, or SIGABRT when it came while Dr.Jit's extension loaded, 0.15-0.2 s in). The tiny
     run's evaluation takes ~0.6 s here; the signal is sent at 12 moments in it. Whatever the moment: no traceback,
-    and the run holds its former evaluation or a complete new one."""
+    and the run holds its former evaluation or a complete new one. A signal that lands while CPython itself is still
+    importing its ``site`` module (before any code of this project or its ``.pth`` hook runs; on a loaded machine the
+    first moment can fall there) ends in CPython's own fatal error, which no program can catch: such a moment is
+    skipped, and at most two of the twelve may be."""
+    startup = 0
     for k, after in enumerate(np.arange(0.05, 0.65, 0.05)):
         run = copy_run(trained, tmp_path / f"run{k}")
         before = (run / "metrics.json").read_text()
@@ -448,6 +452,10 @@ def test_ctrl_c_early_in_evaluate_is_one_line(trained, tmp_path):
         time.sleep(after)
         p.send_signal(signal.SIGINT)
         out, err = p.communicate(timeout=300)
+        if "init_import_site" in err and (run / "metrics.json").read_text() == before:
+            startup += 1
+            assert startup <= 2, (after, err)
+            continue
         assert "Traceback" not in err, (after, err)
         assert p.returncode in (0, 130, -signal.SIGINT), (after, p.returncode, err)
         if p.returncode == 130:
