@@ -593,3 +593,29 @@ def test_gpu_budget_command_dry_run(tmp_path):
     cfg = json.loads((out / "bench" / "runs" / "scene_021" / "glint" / "config.json").read_text())
     budget = float(md.split("**")[1].split()[0])
     assert cfg["run"]["epochs"] == budget and cfg["densify"]["densify_top"] == 0.12
+
+
+def test_sweep_table_labels_levels_and_folders(tmp_path):
+    """benchmarks/sweep_table.py: one row per level and run label (a folder given with :SUFFIX labels its runs
+    METHOD+SUFFIX), the mean over the rooms that run finished, seeds other than 0 and rooms not asked for left out."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import sweep_table
+
+    def write(folder, room, method, **m):
+        d = tmp_path / folder / "runs" / f"scene_{room}" / method
+        d.mkdir(parents=True)
+        (d / "metrics.json").write_text(json.dumps({"metrics": m}))
+
+    write("a", 1, "glint", psnr=30.0, t_iou=0.5)
+    write("a", 2, "glint", psnr=32.0, t_iou=0.7)
+    write("a", 3, "glint", psnr=99.0)                        # a room not asked for
+    write("a", 1, "glint@seed1", psnr=99.0)                  # another seed
+    write("a", 1, "priors", normal_mae=20.0)
+    write("a_pp", 1, "glint", psnr=31.0)
+    data = sweep_table.gather([f"1.0={tmp_path / 'a'},{tmp_path / 'a_pp'}:pp"], ["scene_1", "scene_2"])
+    assert sorted(data["1.0"]) == ["glint", "glint+pp", "priors"]
+    text = sweep_table.table(data)
+    assert "| 1.0 | glint | 2 | 31.00 |" in text and "| 1.0 | glint+pp | 1 | 31.00 |" in text
+    assert "| 1.0 | priors | 1 | - |" in text and "0.60" in text  # t IoU: the mean of 0.5 and 0.7
+    with pytest.raises(SystemExit, match="LEVEL=FOLDER"):
+        sweep_table.gather(["1.0"], None)

@@ -1,0 +1,73 @@
+"""A sweep's table (issue 66, ``docs/results/prior_sweep``): each level of a swept setting as benchmark output
+folders, each run named ``LABEL`` (a method, or ``METHOD+SUFFIX`` for a folder trained with extra settings), one row
+per level and run with the mean over the rooms it finished, and the rooms it used.
+
+Each ``LEVEL=FOLDER[:SUFFIX][,FOLDER[:SUFFIX]...]`` gives the folders of one level; a run of method M in a folder
+given with ``:SUFFIX`` is labelled ``M+SUFFIX`` (``see_1.0_priorphoto:pp`` -> ``glint+pp``). Runs are read as
+``benchmarks/converge_table.py`` reads them (finished evaluations only).
+
+    .venv/bin/python benchmarks/sweep_table.py 1.0=R/see_1.0,R/see_1.0_cuephoto:cue,R/see_1.0_priorphoto:pp \\
+        0.6=R/see_0.6 --rooms scene_7301,scene_7302 --out docs/results/prior_sweep/see_through.md
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from converge_table import read_runs  # noqa: E402
+
+COLUMNS = (("psnr", "PSNR", 2), ("psnr_glass", "on glass", 2), ("psnr_off_glass", "off glass", 2),
+           ("normal_mae", "normal MAE", 1), ("absrel", "AbsRel", 3), ("normal_mae_glass", "glass normals", 1),
+           ("t_iou", "t IoU", 2))
+
+
+def gather(specs: list[str], rooms: list[str] | None) -> dict:
+    """{level: {label: {room: row}}} over every ``LEVEL=FOLDER[:SUFFIX],...`` spec (seed 0)."""
+    out: dict = {}
+    for spec in specs:
+        level, _, folders = spec.partition("=")
+        if not level or not folders:
+            raise SystemExit(f"error: {spec!r}: give LEVEL=FOLDER[:SUFFIX][,FOLDER[:SUFFIX]...]")
+        for item in folders.split(","):
+            folder, _, suffix = item.partition(":")
+            for r in read_runs(Path(folder)):
+                if r["seed"] != 0 or (rooms and r["scene"] not in rooms):
+                    continue
+                label = r["method"] + (f"+{suffix}" if suffix else "")
+                out.setdefault(level, {}).setdefault(label, {}).setdefault(r["scene"], r)
+    return out
+
+
+def table(data: dict) -> str:
+    head = "| level | run | rooms | " + " | ".join(name for _, name, _ in COLUMNS) + " |"
+    lines = [head, "|---|---|---|" + "---|" * len(COLUMNS)]
+    for level, runs in data.items():
+        for label, by_room in sorted(runs.items()):
+            cells = []
+            for key, _, d in COLUMNS:
+                vals = [by_room[s][key] for s in sorted(by_room) if math.isfinite(by_room[s][key])]
+                cells.append(f"{sum(vals) / len(vals):.{d}f}" if vals else "-")
+            lines.append(f"| {level} | {label} | {len(by_room)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("levels", nargs="+", help="LEVEL=FOLDER[:SUFFIX][,FOLDER[:SUFFIX]...]")
+    ap.add_argument("--rooms", default="", help="comma-separated scene folders to read (default: all)")
+    ap.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
+    a = ap.parse_args(argv)
+    rooms = [r for r in a.rooms.split(",") if r] or None
+    text = (f"`python benchmarks/sweep_table.py {' '.join(a.levels)}`" + (f" (rooms {a.rooms})" if rooms else "")
+            + "; seed 0, the mean over the rooms each run finished\n\n" + table(gather(a.levels, rooms)))
+    print(text)
+    if a.out:
+        a.out.write_text(text + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
