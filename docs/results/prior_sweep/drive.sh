@@ -33,6 +33,7 @@ if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its two addenda
     if [ "$p" = 1.0 ] || [ "$p" = 0.6 ]; then
       run $B --data "$L" --methods glint,3dgs-priors $PP --out "$OUT/see_${p}_priorphoto"
       run $B --data "$L" --methods glint $PP --set cue_photo=0.75 --out "$OUT/see_${p}_bothphoto"
+      run $B --data "$L" --methods glint --set w_normal=0.15 --set w_depth=0.05 --out "$OUT/see_${p}_halfprior"
     fi
     for s in $ROOMS; do
       for q in 0 0.75; do
