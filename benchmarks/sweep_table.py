@@ -24,8 +24,9 @@ COLUMNS = (("psnr", "PSNR", 2), ("psnr_glass", "on glass", 2), ("psnr_off_glass"
            ("t_iou", "t IoU", 2))
 
 
-def gather(specs: list[str], rooms: list[str] | None) -> dict:
-    """{level: {label: {room: row}}} over every ``LEVEL=FOLDER[:SUFFIX],...`` spec (seed 0)."""
+def gather(specs: list[str], rooms: list[str] | None, missing: list | None = None) -> dict:
+    """{level: {label: {room: row}}} over every ``LEVEL=FOLDER[:SUFFIX],...`` spec (seed 0). A folder that does not
+    exist yet (a sweep still running) is appended to ``missing`` when given, else refused."""
     out: dict = {}
     for spec in specs:
         level, _, folders = spec.partition("=")
@@ -33,6 +34,9 @@ def gather(specs: list[str], rooms: list[str] | None) -> dict:
             raise SystemExit(f"error: {spec!r}: give LEVEL=FOLDER[:SUFFIX][,FOLDER[:SUFFIX]...]")
         for item in folders.split(","):
             folder, _, suffix = item.partition(":")
+            if missing is not None and not Path(folder).exists():
+                missing.append(folder)
+                continue
             for r in read_runs(Path(folder)):
                 if r["seed"] != 0 or (rooms and r["scene"] not in rooms):
                     continue
@@ -41,9 +45,14 @@ def gather(specs: list[str], rooms: list[str] | None) -> dict:
     return out
 
 
-def table(data: dict) -> str:
+def table(data: dict, by_room: bool = False) -> str:
+    """The mean over each run's rooms (``rooms`` says how many: compare runs of equal counts), or with ``by_room``
+    one row per room."""
     head = "| level | run | rooms | " + " | ".join(name for _, name, _ in COLUMNS) + " |"
     lines = [head, "|---|---|---|" + "---|" * len(COLUMNS)]
+    if by_room:
+        data = {f"{level} {room}": {label: {room: rows[room]} for label, rows in runs.items() if room in rows}
+                for level, runs in data.items() for room in sorted({r for rows in runs.values() for r in rows})}
     for level, runs in data.items():
         for label, by_room in sorted(runs.items()):
             cells = []
@@ -58,11 +67,15 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("levels", nargs="+", help="LEVEL=FOLDER[:SUFFIX][,FOLDER[:SUFFIX]...]")
     ap.add_argument("--rooms", default="", help="comma-separated scene folders to read (default: all)")
+    ap.add_argument("--by-room", action="store_true", help="one row per room instead of the mean")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
     a = ap.parse_args(argv)
     rooms = [r for r in a.rooms.split(",") if r] or None
+    missing: list = []
+    data = gather(a.levels, rooms, missing)
     text = (f"`python benchmarks/sweep_table.py {' '.join(a.levels)}`" + (f" (rooms {a.rooms})" if rooms else "")
-            + "; seed 0, the mean over the rooms each run finished\n\n" + table(gather(a.levels, rooms)))
+            + "; seed 0, the mean over the rooms each run finished"
+            + (f"; not yet run: {', '.join(missing)}" if missing else "") + "\n\n" + table(data, a.by_room))
     print(text)
     if a.out:
         a.out.write_text(text + "\n")

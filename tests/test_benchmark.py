@@ -617,5 +617,13 @@ def test_sweep_table_labels_levels_and_folders(tmp_path):
     text = sweep_table.table(data)
     assert "| 1.0 | glint | 2 | 31.00 |" in text and "| 1.0 | glint+pp | 1 | 31.00 |" in text
     assert "| 1.0 | priors | 1 | - |" in text and "0.60" in text  # t IoU: the mean of 0.5 and 0.7
+    rows = sweep_table.table(data, by_room=True)
+    assert "| 1.0 scene_1 | glint | 1 | 30.00 |" in rows and "| 1.0 scene_2 | glint | 1 | 32.00 |" in rows
+    assert "| 1.0 scene_2 | glint+pp |" not in rows
     with pytest.raises(SystemExit, match="LEVEL=FOLDER"):
         sweep_table.gather(["1.0"], None)
+    missing = []  # a folder not there yet: named, not read
+    assert sweep_table.gather([f"1.0={tmp_path / 'later'}:x,{tmp_path / 'a'}"], None, missing)["1.0"]["glint"]
+    assert missing == [str(tmp_path / "later")]
+    with pytest.raises(SystemExit, match="holds neither"):
+        sweep_table.gather([f"1.0={tmp_path / 'later'}"], None)
