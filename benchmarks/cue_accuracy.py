@@ -45,9 +45,8 @@ def cue_accuracy(root, margin: float = 0.05, radius: float = 0.04, observations=
     tracked = z > 0
     photo_above = {}
     if photo > 0:  # what prior_photo at the same q leaves without priors, on the glass and off it
-        score = bank._photo_score()
-        above = np.isfinite(score) & (score > np.nanquantile(score, photo)) if np.isfinite(score).any() \
-            else np.zeros(glass.size, bool)
+        above = bank.photo_moving(photo)
+        above = np.zeros(glass.size, bool) if above is None else above
         photo_above = {"photo_above_on_glass": share(above, glass), "photo_above_off_glass": share(above, ~glass)}
     return {"dataset": str(root), "glass_share": float(glass.mean()), **photo_above,
             "through_on_glass": share(cue == 1, glass), "opaque_on_glass": share(cue == -1, glass),

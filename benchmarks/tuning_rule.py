@@ -94,10 +94,13 @@ def judge(pairs: dict[str, tuple], agree: int, min_rooms: int = 3) -> dict:
                 stays=within and dpsnr >= -PSNR_COST)
 
 
-def floor_check(pairs: dict, floors: dict) -> dict:
-    """{room: True/False}: the switch's normal MAE and AbsRel at or under the floor method's (rooms with a floor)."""
-    return {r: pairs[r][1]["normal_mae"] <= floors[r]["normal_mae"] and pairs[r][1]["absrel"] <= floors[r]["absrel"]
-            for r in pairs if r in floors}
+def apply_floor(verdict: dict, pairs: dict, floors: dict, method: str) -> dict:
+    """``--floor``: the rooms where the switch's normal MAE or AbsRel is over the floor method's, or where the floor's
+    run is missing (``floor_missed``); with any, the switch is neither adopted nor, under ``--confirm``, kept."""
+    over = lambda r: any(pairs[r][1][c] > floors[r][c] for c in ("normal_mae", "absrel"))
+    missed = [r for r in sorted(pairs) if r not in floors or over(r)]
+    return {**verdict, "floor_method": method, "floor_missed": missed,
+            "adopted": verdict["adopted"] and not missed, "stays": verdict["stays"] and not missed}
 
 
 def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = False) -> str:
@@ -121,13 +124,10 @@ def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = Fa
               f"{agree} of {len(rooms)} rooms): {'passes' if v['psnr_rule'] else 'fails'}. "
               + (f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**" if v["enough"]
                  else f"**Too few rooms to decide** ({len(rooms)})."), ""]
-    if "floor" in v:  # rooms without the floor's run count as not met
-        bad = [r for r in rooms if not v["floor"].get(r, False)]
+    if "floor_method" in v:
         lines.insert(-1, f"Floor (`{v['floor_method']}`: normals and AbsRel at or under it in every room): "
-                     + (f"**not met** in {', '.join(bad)}." if bad else "met."))
+                     + (f"**not met** in {', '.join(v['floor_missed'])}." if v["floor_missed"] else "met."))
     return "\n".join(lines)
-
-
 
 
 def main(argv=None) -> int:
@@ -169,8 +169,7 @@ def main(argv=None) -> int:
         agree = a.agree if a.agree is not None else max(len(pairs) - 1, 1)
         verdict = judge(pairs, agree, a.min_rooms)
         if a.floor:
-            verdict["floor"], verdict["floor_method"] = floor_check(pairs, floors), a.floor
-            verdict["adopted"] = verdict["adopted"] and all(verdict["floor"].get(r, False) for r in pairs)
+            verdict = apply_floor(verdict, pairs, floors, a.floor)
         out.append(report(name, pairs, verdict, agree, a.confirm))
         if missing:
             out.append(f"Left out (no seed finished in both folders): {', '.join(missing)}.\n")

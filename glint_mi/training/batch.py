@@ -269,9 +269,9 @@ class RayBank:
             n_t, n_o, used = n_t + int((lab > 0).sum()), n_o + int((lab < 0).sum()), used + 1
         dropped = 0.0
         if photo > 0 and used:
-            score = self._photo_score()
-            if np.isfinite(score).any():
-                moving = np.isfinite(score) & (score > np.nanquantile(score, photo)) & (cue == -1)
+            moving = self.photo_moving(photo)
+            if moving is not None:
+                moving &= cue == -1
                 dropped = float(moving.sum() / max(int((cue == -1).sum()), 1))
                 cue[moving] = 0
         rep = {"views": used, "seen_through_observations": n_t, "opaque_observations": n_o,
@@ -337,13 +337,18 @@ class RayBank:
             out[self.offsets[i]:self.offsets[i + 1]] = med / (np.hypot(gx, gy).ravel() + 0.01)
         return out
 
-    def _photo_score(self) -> np.ndarray:
-        """:meth:`photo_inconsistency` with its defaults, computed once for the cue and the prior mask (seconds a
-        room); again if the alignment or the depth prior is replaced (the photos of a bank do not change)."""
+    def photo_moving(self, q: float) -> np.ndarray | None:
+        """[pixels] bool: the training pixels whose :meth:`photo_inconsistency` (its defaults) is above its
+        ``q``-quantile, where ``cue_photo`` drops opaque votes and ``prior_photo`` the priors; None when no pixel is
+        scored. The score is computed once for both (seconds a room), again if the alignment or the depth prior is
+        replaced (the photos of a bank do not change)."""
         cached = getattr(self, "_photo", None)
         if cached is None or cached[0] is not self.depth_affine or cached[1] is not self.priors.get("depth"):
             cached = self._photo = (self.depth_affine, self.priors.get("depth"), self.photo_inconsistency())
-        return cached[2]
+        score = cached[2]
+        if not np.isfinite(score).any():
+            return None
+        return np.isfinite(score) & (score > np.nanquantile(score, q))
 
     def drop_priors_by_photo(self, q: float) -> dict:
         """``prior_photo``: the depth and normal priors are left out (0, which their terms read as no prior) at the
@@ -355,15 +360,15 @@ class RayBank:
             raise ValueError(f"q must be a quantile in (0, 1) (got {q!r})")
         if self.priors.get("depth") is None or self.depth_affine is None:
             return {"dropped": 0.0, "why": "no depth prior aligned to SfM: nothing places the point to compare"}
-        score = self._photo_score()
-        if not np.isfinite(score).any():
+        drop = self.photo_moving(q)
+        if drop is None:
             return {"dropped": 0.0, "why": "no pixel seen by two views at the prior's depth"}
-        drop = np.isfinite(score) & (score > np.nanquantile(score, q))
+        scored = float(np.isfinite(self._photo[2]).mean())
         for k in ("depth", "normal"):
             if self.priors.get(k) is not None:
                 self.priors[k] = np.where(drop[:, None], 0, self.priors[k]).astype(self.priors[k].dtype)
         self._device = None  # the device copies hold the priors as they were
-        return {"q": q, "dropped": float(drop.mean()), "scored": float(np.isfinite(score).mean())}
+        return {"q": q, "dropped": float(drop.mean()), "scored": scored}
 
     def set_sfm_depth(self, observations: dict | None) -> dict:
         """``self.sfm_depth`` [pixels] float32: the planar depth of the tracked SfM feature at each training pixel
