@@ -11,7 +11,7 @@ import pytest
 from glint_mi.training import losses as L
 from glint_mi.training import objective as O
 from glint_mi.training.batch import patch_neighbours
-from glint_mi.config import TrainConfig
+from glint_mi.config import ConfigError, TrainConfig
 
 
 def _f(a):
@@ -274,6 +274,15 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     assert part["normal"] == pytest.approx(0.25 * full["normal"], rel=1e-5)
     assert part["l1"] == pytest.approx(full["l1"], rel=1e-6)
     assert not compiled, compiled
+    # prior_decay_terms: normal - the normal prior falls, the depth prior keeps its weight (exact priors: the normal
+    # prior is what costs 3DGS PSNR, the depth prior gains)
+    c_n = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, prior_decay_terms="normal",
+                                 components="interface")
+    only_n = O.batch_objective(c_n, b, out, {**st, "prior_scale": 0.25}, ray, fwd, len(tr.bank.views), tr.extent)[0]
+    assert only_n["normal"] == pytest.approx(0.25 * full["normal"], rel=1e-5)
+    assert only_n["depth"] == pytest.approx(full["depth"], rel=1e-5)
+    with pytest.raises(ConfigError, match="prior_decay_terms"):
+        TrainConfig.for_preset("tiny", prior_decay_terms="albedo")
 
 
 @pytest.mark.parametrize("cover, share, kept", [(0.0041, 0.0063, True),    # tuning room 7301 with its glass case

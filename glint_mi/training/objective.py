@@ -49,7 +49,12 @@ class Inputs:
     trans: tuple | None          # the transmission set's direct buffers (Dc, Dd, Dn, DA) as leaves, when traced
     behind_ok: object            # prior_layer: nearer - rays whose priors may describe the transmitted surface
     prior_w: object              # the prior terms' schedule (prior_decay)
+    decays: tuple = ("depth", "normal")  # the terms it scales (prior_decay_terms)
     _masks: tuple | None = None
+
+    def decay(self, term: str):
+        """The schedule's factor on the prior term ``term`` (prior_decay, for the terms prior_decay_terms names)."""
+        return self.prior_w if term in self.decays else 1.0
 
     @property
     def traced_t(self) -> bool:
@@ -129,9 +134,9 @@ def _depth(x):
         fit = dr.isfinite(w_v)  # views without a fit keep the per-batch fit
         vid = dr.select(fit, x.n_views, b.view)  # fitted views: a spare slot
         w_b, q_b = L.depth_fit(depth, prior, mask & ~fit, vid, x.n_views + 1)
-        return c.w_depth * x.prior_w * L.depth_loss_aligned(depth, prior, mask, dr.select(fit, w_v, w_b),
+        return c.w_depth * x.decay("depth") * L.depth_loss_aligned(depth, prior, mask, dr.select(fit, w_v, w_b),
                                                            dr.select(fit, q_v, q_b), behind)
-    return c.w_depth * x.prior_w * L.depth_loss(depth, prior, mask, b.view, x.n_views, behind)
+    return c.w_depth * x.decay("depth") * L.depth_loss(depth, prior, mask, b.view, x.n_views, behind)
 
 
 def _sfm_depth(x):
@@ -152,8 +157,9 @@ def _normal(x):
     if x.behind_ok is not None:
         Dn = x.trans[2]
         behind = (mi.Vector3f(dr.dot(axes[0], Dn), dr.dot(axes[1], Dn), dr.dot(axes[2], Dn)), x.behind_ok)
-    return c.w_normal * x.prior_w * L.normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss, x.st["normal_masked"],
-                                                  behind, x.w_near if x.near_p else None)[0]
+    return c.w_normal * x.decay("normal") * L.normal_loss(n_cv, prior, c.tau_n, valid, c.normal_loss,
+                                                          x.st["normal_masked"], behind,
+                                                          x.w_near if x.near_p else None)[0]
 
 
 def _direct(x):
@@ -248,7 +254,8 @@ def batch_objective(c, b, out: dict, st: dict, ray, fwd, n_views: int, extent: f
         # the prior terms' schedule (prior_decay): an opaque scalar, so the kernels stay the same while it falls
         prior_w = dr.opaque(mi.Float, st.get("prior_scale", 1.0)) if c.prior_decay < 1.0 else 1.0
         x = Inputs(c, b, out, st, ray, fwd, n_views, extent, device_neighbours(b.patches, b.patch), rgb, depth,
-                   normal, t, A, leaves, stats, near_c, near_p, w_near, trans, behind_ok, prior_w)
+                   normal, t, A, leaves, stats, near_c, near_p, w_near, trans, behind_ok, prior_w,
+                   tuple(c.prior_decay_terms.split(",")))
         parts = {term.name: term.fn(x) for term in TERMS if term.when(x)}
         total = sum(parts.values())
         dr.backward(total)
