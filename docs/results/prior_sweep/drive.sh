@@ -15,7 +15,7 @@ for s in $ROOMS; do
       --preset bench --views 48 --spp 256 --renderer cycles
 done
 level() {  # level NAME SEED ARGS...: DATA/levels/NAME/scene_SEED with its own priors
-  local name=$1 s=$2; shift 2
+  local name=$1 s=$2 f; shift 2   # f local: the error part's loop over scales is also f
   local dst="$DATA/levels/$name/scene_$s" src="$DATA/r$s/scene_$s"
   [ -f "$dst/priors/PRIORS.json" ] && return
   mkdir -p "$dst"
