@@ -142,11 +142,12 @@ class LossConfig:
     #                                      view over the view's rays in each batch (~2.5 patches)
     depth_refit: float = 0.02
     w_normal: float = 0.3
-    prior_decay: float = 1.0             # from this fraction of the run the depth and normal prior weights fall
-    #                                      linearly to 0 at its end; 1.0 = constant weights (the paper)
-    prior_decay_terms: str = "depth,normal"  # which prior terms prior_decay lets fall: depth,normal | normal | depth
-    #                                      (with exact priors the normal prior cost 3DGS 0.43 dB on room 7301 and
-    #                                      the depth prior gained 0.31: docs/results/prior_sweep)
+    prior_decay: float = 0.5             # from this fraction of the run the prior terms prior_decay_terms names fall
+    #                                      linearly to 0 at its end; 1.0 = constant weights (the paper, every baseline)
+    prior_decay_terms: str = "normal"    # which prior terms prior_decay lets fall: normal (glint_mi's: the depth prior
+    #                                      keeps its weight) | depth,normal | depth. With near-exact priors the normal
+    #                                      prior cost 3DGS 0.43 dB on room 7301 and the depth prior gained 0.31;
+    #                                      decided on the tuning rooms (docs/results/prior_sweep, docs/decisions.md)
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator

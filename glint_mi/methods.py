@@ -12,18 +12,20 @@ NO_PRIORS = dict(priors="none", w_depth=0.0, w_normal=0.0)
 NO_GLASS = dict(w_trans=0.0, w_treg=0.0, w_plausibility=0.0, w_direct=0.0)
 PLAIN_PHOTO = dict(w_l1=0.8, w_dssim=0.2)  # 3DGS / 2DGS weights
 ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no specular, no transparency attribute
-# glint_mi's SfM depth term and its near-to-far weight of the consistency are no baseline's
-NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform")
+# glint_mi's SfM depth term, its near-to-far weight of the consistency and its falling normal prior are no baseline's
+NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform", prior_decay=1.0)
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
 GLINT_PHOTO = dict(w_l1=1.2, w_dssim=0.4)  # GLINT's photometric weights (TrainConfig's defaults; tested equal)
 # prior parity: GLINT's depth and normal terms with GLINT's photometric weights, so the priors weigh as much against
 # the photos as in GLINT (Adam is scale-free: only these ratios matter). The albedo prior goes to no baseline: only
 # glint-paper reads it (trans_albedo: masks, the paper's L_trans masks; glint_mi's GLINT leaves it out), and no
 # baseline here has a transparency a cue could supervise except TSGS, whose paper takes a segmenter's masks instead
-WITH_PRIORS = dict(w_depth=0.1, w_normal=0.3, priors="all", **GLINT_PHOTO)
+WITH_PRIORS = dict(w_depth=0.1, w_normal=0.3, prior_decay=0.5, prior_decay_terms="normal", priors="all",
+                   **GLINT_PHOTO)
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
              trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage
+             prior_decay=1.0,  # the paper's prior weights are constant
              prior_layer="interface",  # the priors supervise the interface everywhere
              normal_weight="near")  # the release's depth scale of the normal prior and the consistency
 METHOD_3DGS = dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS,
@@ -103,7 +105,8 @@ METHODS = {m.name: m for m in [
            "weighted by the release's near-to-far depth scale (normal_weight: near; since 2026-11-27)",
            "the whole-image depth fit is refitted every 2 % of the run on a grid of <= 2048 pixels per view"),
     Method("3dgs-priors", {**METHOD_3DGS, **WITH_PRIORS},
-           "3DGS given the same depth and normal priors as GLINT (GLINT's terms, prior and photometric weights)",
+           "3DGS given the same depth and normal priors as GLINT (GLINT's terms, prior weights and their schedule, "
+           "photometric weights)",
            "prior parity row: GLINT's photometric weights 1.2 / 0.4 instead of 3DGS's 0.8 / 0.2 (until 2026-11-26 "
            "the parity rows kept 0.8 / 0.2)"),
     Method("2dgs-priors", {**METHOD_2DGS, **WITH_PRIORS},

@@ -248,13 +248,16 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
 
     from glint_mi.training.trainer import Trainer
 
-    c = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, components="interface")
+    c = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, prior_decay_terms="depth,normal",
+                               components="interface")
     fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0}, dropped={},
                            bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
     scale = lambda it: Trainer.stage(fake, it)["prior_scale"]
     assert scale(0) == scale(100) == 1.0 and scale(150) == pytest.approx(0.5) and scale(200) == 0.0
-    fake.cfg = TrainConfig.for_preset("tiny", iterations=200)
-    assert scale(199) == 1.0  # the default: constant weights (the paper)
+    fake.cfg = TrainConfig.for_preset("tiny", iterations=200, prior_decay=1.0)
+    assert scale(199) == 1.0  # constant weights (the paper, every baseline)
+    fake.cfg = TrainConfig.for_preset("tiny", iterations=200)  # the default: the normal prior falls from half the run
+    assert fake.cfg.prior_decay_terms == "normal" and scale(100) == 1.0 and scale(150) == pytest.approx(0.5)
 
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["depth"] and st["normal"]

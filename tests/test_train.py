@@ -1073,8 +1073,8 @@ def test_glass_cue_rule(trans_cue, albedo, cue, kept):
 @pytest.mark.parametrize("profile", ["3dgs", "3dgs+sfm"])
 def test_glint_without_a_glass_cue_trains_as_3dgs(room, tmp_path, profile):
     """GLINT contains 3DGS: without priors (no glass cue) both extra sets are dropped and the resolved training
-    configuration equals the 3dgs method's except in fields that act only on the dropped sets (and, for 3dgs+sfm,
-    glint_mi's SfM depth term)."""
+    configuration equals the 3dgs method's except in fields that act only on the dropped sets or on absent priors
+    (and, for 3dgs+sfm, glint_mi's SfM depth term)."""
     from glint_mi.methods import config_for
 
     cfg = config_for("glint-no-priors", "tiny", log_every=1000, no_glass=profile)
@@ -1082,7 +1082,9 @@ def test_glint_without_a_glass_cue_trains_as_3dgs(room, tmp_path, profile):
     assert set(tr.dropped) == {"transmission", "reflection"} and list(tr.sets) == ["interface"]
     ref = config_for("3dgs", "tiny", log_every=1000).with_budget(tr.train_pixels)
     differ = {k for k, v in ref.flat().items() if getattr(tr.cfg, k) != v}
-    inert = {"components", "w_direct", "w_trans", "w_treg", "w_plausibility"}
+    inert = {"components", "w_direct", "w_trans", "w_treg", "w_plausibility",
+             "prior_decay"}  # the prior terms' schedule: no prior is read (w_depth = w_normal = 0, as 3dgs)
+    assert tr.cfg.w_depth == tr.cfg.w_normal == 0.0
     assert differ == inert | ({"w_sfm_depth", "no_glass"} if profile == "3dgs+sfm" else set()), differ
     assert TrainConfig.load(tmp_path / "g" / "config.json").w_sfm_depth == tr.cfg.w_sfm_depth
 
