@@ -24,7 +24,10 @@ level() {  # level NAME SEED ARGS...: DATA/levels/NAME/scene_SEED with its own p
 }
 B="$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40"
 PP="--set prior_photo=0.75"
-if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its two addenda
+if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its addenda
+  # item 4 ran with constant prior weights (the default until the thirty-sixth session): pinned here so that the
+  # runs repeat as recorded; normaldecay, the switch that made the falling normal prior the default, sets its own
+  NOW="$B"; B="$B --set prior_decay=1.0"
   for p in $VALUES; do
     for s in $ROOMS; do level "see_$p" $s --model realistic --see-through $p; done
     L="$DATA/levels/see_$p"
@@ -42,6 +45,10 @@ if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its two addenda
       run $B --data "$L" --methods glint $PP --set cue_photo=0.75 --out "$OUT/see_${p}_bothphoto"
       run $B --data "$L" --methods glint --set w_normal=0.15 --set w_depth=0.05 --out "$OUT/see_${p}_halfprior"
     fi
+    if [ "$p" = 1.0 ] || [ "$p" = 0.6 ] || [ "$p" = 0.2 ]; then  # declared in the thirty-sixth session (0.2: the floor)
+      run $NOW --data "$L" --methods glint --set prior_decay=0.5 --set prior_decay_terms=normal \
+          --out "$OUT/see_${p}_normaldecay"
+    fi
     for s in $ROOMS; do
       for q in 0 0.75; do
         f="$OUT/see_$p/cue_accuracy_${s}_photo$q.txt"
@@ -50,6 +57,8 @@ if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its two addenda
     done
   done
 fi
+B=${NOW:-$B}  # item 3: the current defaults (the runs of the thirty-sixth session, constant weights, are kept as
+#              groups/const_bench_*; their level e1 is see_0.6, the same priors byte for byte)
 if [ "$PART" = errors ] || [ "$PART" = all ]; then
   for model in realistic realistic-v1; do
     for f in 0.5 0.75 1 1.25 2.0; do
