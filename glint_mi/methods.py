@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from glint_mi.config import LossConfig
+
 NO_PRIORS = dict(priors="none", w_depth=0.0, w_normal=0.0)
 NO_GLASS = dict(w_trans=0.0, w_treg=0.0, w_plausibility=0.0, w_direct=0.0)
 PLAIN_PHOTO = dict(w_l1=0.8, w_dssim=0.2)  # 3DGS / 2DGS weights
@@ -15,13 +17,15 @@ ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no s
 # glint_mi's SfM depth term, its near-to-far weight of the consistency and its falling normal prior are no baseline's
 NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform", prior_decay=1.0)
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
-GLINT_PHOTO = dict(w_l1=1.2, w_dssim=0.4)  # GLINT's photometric weights (TrainConfig's defaults; tested equal)
-# prior parity: GLINT's depth and normal terms with GLINT's photometric weights, so the priors weigh as much against
-# the photos as in GLINT (Adam is scale-free: only these ratios matter). The albedo prior goes to no baseline: only
-# glint-paper reads it (trans_albedo: masks, the paper's L_trans masks; glint_mi's GLINT leaves it out), and no
-# baseline here has a transparency a cue could supervise except TSGS, whose paper takes a segmenter's masks instead
-WITH_PRIORS = dict(w_depth=0.1, w_normal=0.3, prior_decay=0.5, prior_decay_terms="normal", priors="all",
-                   **GLINT_PHOTO)
+_GLINT = LossConfig()  # GLINT's defaults, read here so that the parity rows cannot drift from them
+GLINT_PHOTO = dict(w_l1=_GLINT.w_l1, w_dssim=_GLINT.w_dssim)  # GLINT's photometric weights
+# prior parity: GLINT's depth and normal terms, their schedule and GLINT's photometric weights, so the priors weigh
+# as much against the photos as in GLINT (Adam is scale-free: only these ratios matter). The albedo prior goes to no
+# baseline: only glint-paper reads it (trans_albedo: masks, the paper's L_trans masks; glint_mi's GLINT leaves it
+# out), and no baseline here has a transparency a cue could supervise except TSGS, whose paper takes a segmenter's
+# masks instead
+WITH_PRIORS = dict(priors="all", **GLINT_PHOTO, **{k: getattr(_GLINT, k) for k in (
+    "w_depth", "w_normal", "prior_decay", "prior_decay_terms")})
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
              trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage

@@ -49,7 +49,7 @@ class Inputs:
     trans: tuple | None          # the transmission set's direct buffers (Dc, Dd, Dn, DA) as leaves, when traced
     behind_ok: object            # prior_layer: nearer - rays whose priors may describe the transmitted surface
     prior_w: object              # the prior terms' schedule (prior_decay)
-    decays: tuple = ("depth", "normal")  # the terms it scales (prior_decay_terms)
+    decays: tuple                # the terms it scales (prior_decay_terms)
     _masks: tuple | None = None
 
     def decay(self, term: str):
