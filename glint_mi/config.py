@@ -148,6 +148,12 @@ class LossConfig:
     #                                      keeps its weight) | depth,normal | depth. With near-exact priors the normal
     #                                      prior cost 3DGS 0.43 dB on room 7301 and the depth prior gained 0.31;
     #                                      decided on the tuning rooms (docs/results/prior_sweep, docs/decisions.md)
+    prior_decay_ref: float = 0.0         # deg; 0: the falling normal prior falls to 0. > 0: it falls to min(1, (ref /
+    #                                      a)^2) of its weight, a the median angle between the normal prior and the
+    #                                      planes of the SfM points (RayBank.normal_prior_sfm_agreement, in
+    #                                      report.json): inverse-variance weighting, the full weight for priors that
+    #                                      agree with SfM to ref deg. Unmeasurable (no SfM tracks): falls to 0, said
+    #                                      in the log and report. Needs prior_decay_terms: normal
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
@@ -500,6 +506,11 @@ class TrainConfig:
                 need(isinstance(v, (int, float)) and v >= 0, name, "must be a number >= 0")
         need(self.prior_decay_terms in ("depth,normal", "normal", "depth"), "prior_decay_terms",
              "use depth,normal, normal or depth")
+        need(math.isfinite(self.prior_decay_ref) and self.prior_decay_ref >= 0, "prior_decay_ref",
+             "is an angle in degrees, >= 0 (0: the falling prior falls to 0)")
+        need(self.prior_decay_ref == 0 or self.prior_decay_terms == "normal", "prior_decay_ref",
+             "sets the normal prior's floor from its agreement with the SfM points: use it with prior_decay_terms: "
+             "normal, or set prior_decay_ref=0 to let the depth prior fall too")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "normal_from", "trans_from",
                   "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from",
                   "prior_decay"):

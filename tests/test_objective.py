@@ -121,7 +121,8 @@ def test_stage_schedule(variant):
     from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", variant, iterations=600, sh_degree=2)
-    fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0, "transmission": 0, "reflection": 0}, dropped={},
+    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, sets={"interface": 0, "transmission": 0, "reflection": 0},
+                           dropped={},
                            bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
     stage = lambda it: Trainer.stage(fake, it)
     at = c.at
@@ -179,7 +180,7 @@ def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
         (10.0, 0.1, 0.05, 7 / 30, "median")
     g = config_for("glint", "tiny", iterations=300)
     assert g.w_dist == 0 and g.consistency_from == 0 and g.consistency_depth == "expected"
-    fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0}, dropped={},
+    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, sets={"interface": 0}, dropped={},
                            bank=SimpleNamespace(has=set(), sfm_depth=None))
     stage = lambda it: Trainer.stage(fake, it)
     assert not stage(c.at(0.1) - 1)["distortion"] and stage(c.at(0.1))["distortion"]
@@ -250,7 +251,7 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
 
     c = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, prior_decay_terms="depth,normal",
                                components="interface")
-    fake = SimpleNamespace(cfg=c, it=0, sets={"interface": 0}, dropped={},
+    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, sets={"interface": 0}, dropped={},
                            bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
     scale = lambda it: Trainer.stage(fake, it)["prior_scale"]
     assert scale(0) == scale(100) == 1.0 and scale(150) == pytest.approx(0.5) and scale(200) == 0.0
@@ -258,6 +259,9 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     assert scale(199) == 1.0  # constant weights (the paper, every baseline)
     fake.cfg = TrainConfig.for_preset("tiny", iterations=200)  # the default: the normal prior falls from half the run
     assert fake.cfg.prior_decay_terms == "normal" and scale(100) == 1.0 and scale(150) == pytest.approx(0.5)
+    fake.prior_floor = 0.4  # prior_decay_ref: the normal prior falls to its floor from SfM agreement, not to 0
+    assert scale(100) == 1.0 and scale(150) == pytest.approx(0.7) and scale(200) == pytest.approx(0.4)
+    fake.prior_floor = 0.0
 
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["depth"] and st["normal"]

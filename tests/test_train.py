@@ -779,6 +779,50 @@ def test_device_batch_equals_the_host_batch(room, rng):
         assert np.isnan(np.array(dev.depth_affine[0])).any()
 
 
+def test_normal_prior_agreement_with_sfm_planes(room, rng):
+    """normal_prior_sfm_agreement measures the normal prior against the planes of the SfM points without ground
+    truth: ~0 for a prior equal to the true normals, the tilt for one tilted by a known angle everywhere (each
+    normal turned 20 deg about an axis perpendicular to it); no points or no normal prior say why. The floor
+    prior_decay_ref gives follows (ref / a)^2, capped at 1, and 0 where it was not measured."""
+    from glint_mi.training.batch import RayBank, pixel_rays
+    from glint_mi.training.inputs import normal_prior_floor
+
+    ds = load_dataset(room)
+    bank = RayBank(ds.train_views, room)
+    obs, true_n = {}, []
+    for i, v in enumerate(ds.train_views):  # features on the ground-truth surfaces
+        gt = v.load_gt()
+        ys, xs = np.nonzero(gt["depth"] > 0)
+        k = rng.choice(len(xs), 200, replace=False)
+        xs, ys = xs[k], ys[k]
+        d = pixel_rays(v, np.stack([xs, ys], -1))
+        dist = gt["depth"][ys, xs] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))
+        obs[v.name] = (np.stack([xs + 0.5, ys + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])
+        true_n.append(gt["normal"].reshape(-1, 3) @ bank.axes[i].astype(np.float64))  # world -> OpenCV camera
+    pts = np.concatenate([o[1] for o in obs.values()])
+    n_true = np.concatenate(true_n)
+    bank.priors["normal"] = n_true.astype(np.float32)
+    exact = bank.normal_prior_sfm_agreement(obs, pts)
+    assert exact["observations"] > 500 and exact["median_deg"] < 1.0, exact
+    side = np.cross(n_true, rng.normal(size=n_true.shape))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    th = np.radians(20.0)
+    bank.priors["normal"] = (np.cos(th) * n_true + np.sin(th) * side).astype(np.float32)
+    tilted = bank.normal_prior_sfm_agreement(obs, pts)
+    assert tilted["median_deg"] == pytest.approx(20.0, abs=1.0), tilted
+    assert "SfM" in bank.normal_prior_sfm_agreement({}, None)["why"]
+    bank.priors["normal"] = None
+    assert bank.normal_prior_sfm_agreement(obs, pts)["why"] == "no normal prior"
+    floor = lambda ref, a, **kw: normal_prior_floor(tiny_cfg(**{"prior_decay": 0.5, "prior_decay_ref": ref, **kw}),
+                                                    {"median_deg": a, "why": "no tracks"})[0]
+    assert floor(8.0, 16.0) == pytest.approx(0.25) and floor(8.0, 4.0) == 1.0 and floor(0.0, 16.0) == 0.0
+    assert floor(8.0, None) == 0.0 and floor(8.0, 16.0, prior_decay=1.0) == 0.0
+    with pytest.raises(ConfigError, match="prior_decay_ref"):
+        tiny_cfg(prior_decay_ref=8.0, prior_decay_terms="depth,normal").validate()
+    with pytest.raises(ConfigError, match="prior_decay_ref"):
+        tiny_cfg(prior_decay_ref=-1.0).validate()
+
+
 def test_sfm_see_through_cue(room, rng):
     """see_through_cue labels each pixel by its nearest SfM observation: a feature behind the surface the aligned
     depth prior sees is seen through (+1), one on it is opaque (-1), pixels beyond the radius get 0; the cue

@@ -183,6 +183,40 @@ class RayBank:
         n_cv = self.priors["normal"][self.offsets[i]:self.offsets[i + 1]].reshape(h, w, 3).astype(np.float64)
         return n_cv @ self.axes[i].astype(np.float64).T
 
+    def normal_prior_sfm_agreement(self, observations: dict | None, points: np.ndarray | None, k: int = 12,
+                                   planarity: float = 0.05, min_observations: int = 50) -> dict:
+        """How far the normal prior is from the surfaces the SfM points describe, measured without ground truth: at
+        each tracked feature whose ``k`` nearest SfM points lie on a plane (smallest over middle eigenvalue of their
+        covariance < ``planarity``), the angle between that plane's normal and the prior's normal at the feature's
+        pixel (unoriented, world space). Returns the median angle (deg; None with fewer than ``min_observations``
+        such features, and why) and the counts. On the tuning rooms it follows the prior model's error scale (7301:
+        8.0, 11.1, 14.5, 28.2 deg at 0.5, 0.75, 1, 2; docs/results/prior_sweep)."""
+        from scipy.spatial import cKDTree
+
+        out = {"observations": 0, "median_deg": None}
+        if self.priors.get("normal") is None:
+            return {**out, "why": "no normal prior"}
+        if points is None or len(points) < k or not observations:
+            return {**out, "why": "no SfM points and tracks"}
+        pts = np.asarray(points, np.float64)
+        tree = cKDTree(pts)
+        pix = self.observation_pixels(observations, points=True)
+        angles = []
+        for i, (row, col, _, xyz) in pix.items():
+            _, idx = tree.query(xyz, k)
+            nb = pts[idx] - pts[idx].mean(1, keepdims=True)
+            lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
+            flat = lam[:, 0] < planarity * np.maximum(lam[:, 1], 1e-300)
+            n_prior = self.prior_normals_world(i)[row, col]
+            ok = flat & (np.linalg.norm(n_prior, axis=1) > 0.5)
+            cos = np.abs(np.einsum("ni,ni->n", vec[ok, :, 0], n_prior[ok])) / np.linalg.norm(n_prior[ok], axis=1)
+            angles.append(np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
+        a = np.concatenate(angles) if angles else np.zeros(0)
+        out["observations"] = int(len(a))
+        if len(a) < min_observations:
+            return {**out, "why": f"{len(a)} tracked features on planar SfM neighbourhoods (< {min_observations})"}
+        return {**out, "median_deg": float(np.median(a)), "mean_deg": float(a.mean())}
+
     def fit_depth_to_renders(self, render_depth, max_rays: int = 2048) -> None:
         """depth_align: image — the paper's per-image scale and shift of the depth prior (MonoSDF's closed form),
         fitted over each whole training view: ``render_depth(flat, vid)`` gives the interface's depth and alpha on a

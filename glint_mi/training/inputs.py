@@ -34,6 +34,12 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
         report["depth_align"] = bank.align_depth_priors(ds.points, seed=cfg.seed)
         log(f"depth prior aligned to the SfM points in {report['depth_align']['aligned_views']} of "
             f"{len(bank.views)} views (the others keep the per-batch fit)")
+    if "normal" in bank.has:  # how far the normal prior is from the SfM points' planes (prior_decay_ref reads it)
+        ag = bank.normal_prior_sfm_agreement(ds.observations(), ds.points)
+        report["normal_prior_sfm"] = ag
+        log(f"normal prior against the SfM points' planes: median {ag['median_deg']:.1f} deg over "
+            f"{ag['observations']} tracked features" if ag["median_deg"] is not None else
+            f"normal prior against the SfM points' planes: not measured ({ag['why']})")
     if cfg.trans_cue != "none" and has_transmission:  # only L_trans and plausibility read it
         cue = bank.see_through_cue(ds.observations(), cfg.cue_margin, cfg.cue_radius, cfg.cue_votes,
                                    cfg.cue_point_share, cfg.cue_photo)
@@ -53,3 +59,21 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
         log(f"SfM depth: {sd['pixels']} training pixels carry a tracked feature's depth"
             + (f" ({sd['why']})" if "why" in sd else ""))
     return bank
+
+
+def normal_prior_floor(cfg: TrainConfig, agreement: dict | None) -> tuple[float, str]:
+    """The share of its weight the falling normal prior keeps at the end of the run (``prior_decay_ref``):
+    min(1, (ref / a)^2), a the median angle between the normal prior and the SfM points' planes - the weight of a
+    measurement whose error is a, against one whose error is ref (inverse variance). 0 with prior_decay_ref 0, and
+    where a was not measured (then said). Returns (floor, why)."""
+    if cfg.prior_decay >= 1.0 or "normal" not in cfg.prior_decay_terms.split(","):
+        return 0.0, "the normal prior's weight does not fall"
+    if cfg.prior_decay_ref <= 0:
+        return 0.0, "prior_decay_ref 0: the normal prior falls to 0"
+    a = (agreement or {}).get("median_deg")
+    if a is None:
+        why = (agreement or {}).get("why", "no normal prior")
+        return 0.0, f"the normal prior's agreement with the SfM points was not measured ({why}): it falls to 0"
+    f = min(1.0, (cfg.prior_decay_ref / max(a, 1e-6)) ** 2)
+    return f, (f"the normal prior falls to {f:.2f} of its weight: it agrees with the SfM points' planes to {a:.1f} "
+               f"deg, prior_decay_ref {cfg.prior_decay_ref:g} deg")

@@ -83,6 +83,7 @@ class Trainer:
         self._unread = 0  # history rows from here on may hold device values (settle)
         self._nonfinite_read: dict[str, int] = {}  # update: device's zeroed-gradient counts already reported
         self.report: dict = {"components": {}, "init": {}, "events": []}
+        self.prior_floor = 0.0  # the falling normal prior's last share (builder: prior_decay_ref)
         self.rng = np.random.default_rng(cfg.seed)
         self.stop_requested = False
         # phase(name) -> context manager around each part of a step; benchmarks/profile_step.py times them
@@ -163,8 +164,9 @@ class Trainer:
                 "normal": c.w_normal > 0 and "normal" in self.bank.has and (on(c.normal_from)
                                                                            or c.normal_early == "unmasked"),
                 "normal_masked": on(c.normal_from),
-                # prior_decay < 1: the prior terms' weight, 1 until then, linearly to 0 at the last iteration
-                "prior_scale": 1.0 if c.prior_decay >= 1.0 else
+                # prior_decay < 1: the prior terms' weight, 1 until then, linearly to prior_floor at the last
+                # iteration (0, or the normal prior's share from its agreement with SfM: prior_decay_ref)
+                "prior_scale": 1.0 if c.prior_decay >= 1.0 else self.prior_floor + (1.0 - self.prior_floor) *
                 min(1.0, max(0.0, (c.iterations - it) / max(1, c.iterations - c.at(c.prior_decay)))),
                 "consistency": c.w_consistency > 0 and on(c.consistency_from),
                 "distortion": c.w_dist > 0 and on(c.dist_from),
