@@ -63,12 +63,56 @@ def table(data: dict, by_room: bool = False) -> str:
     return "\n".join(lines)
 
 
+def floor_plot(data: dict, path: Path, reference: str = "priors") -> dict:
+    """Each run's normal MAE and AbsRel against the ``reference`` row's (the priors), one point per room and level,
+    with the diagonal: a point above it ends worse than its priors (issue 66, item 3). Returns the points plotted,
+    {column: {label: [(reference's, run's), ...]}}."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
+    labels = sorted({label for runs in data.values() for label in runs  # the reference's copies are no run
+                     if label != reference and not label.startswith(reference + "+")})
+    marks = "osD^vP*X"
+    points: dict = {}
+    for ax, (key, name) in zip(axes, (("normal_mae", "normal MAE (deg)"), ("absrel", "AbsRel"))):
+        lo, hi = math.inf, -math.inf
+        for j, label in enumerate(labels):
+            xs, ys = [], []
+            for level, runs in data.items():
+                ref = runs.get(reference, {})
+                for room, row in runs.get(label, {}).items():
+                    if room in ref and math.isfinite(row[key]) and math.isfinite(ref[room][key]):
+                        xs.append(ref[room][key])
+                        ys.append(row[key])
+            if xs:
+                points.setdefault(key, {})[label] = list(zip(xs, ys))
+                ax.scatter(xs, ys, marker=marks[j % len(marks)], s=40, label=label, alpha=0.8)
+                lo, hi = min(lo, *xs, *ys), max(hi, *xs, *ys)
+        if math.isfinite(lo):
+            pad = 0.05 * (hi - lo)
+            ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], "k--", lw=1, label="= the priors'")
+        ax.set_xlabel(f"the priors' {name}")
+        ax.set_ylabel(f"the run's {name}")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("Each run against its priors (one point per room and level; above the line: worse)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return points
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("levels", nargs="+", help="LEVEL=FOLDER[:SUFFIX][,FOLDER[:SUFFIX]...]")
     ap.add_argument("--rooms", default="", help="comma-separated scene folders to read (default: all)")
     ap.add_argument("--by-room", action="store_true", help="one row per room instead of the mean")
     ap.add_argument("--out", type=Path, default=None, help="also write the table here (markdown)")
+    ap.add_argument("--floor-plot", type=Path, default=None,
+                    help="also plot each run's normal MAE and AbsRel against the priors row's (PNG)")
     a = ap.parse_args(argv)
     rooms = [r for r in a.rooms.split(",") if r] or None
     missing: list = []
@@ -79,6 +123,8 @@ def main(argv=None) -> int:
     print(text)
     if a.out:
         a.out.write_text(text + "\n")
+    if a.floor_plot:
+        floor_plot(data, a.floor_plot)
     return 0
 
 

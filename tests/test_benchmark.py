@@ -631,3 +631,10 @@ def test_sweep_table_labels_levels_and_folders(tmp_path):
     assert missing == [str(tmp_path / "later")]
     with pytest.raises(SystemExit, match="holds neither"):
         sweep_table.gather([f"1.0={tmp_path / 'later'}"], None)
+    # the floor plot: each run's geometry against the priors row's, per room and level (the priors' copies left out)
+    write("a_pp", 1, "priors", normal_mae=20.0)
+    data = sweep_table.gather([f"1.0={tmp_path / 'a'},{tmp_path / 'a_pp'}:pp"], ["scene_1"])
+    data["1.0"]["glint"]["scene_1"]["normal_mae"] = 18.0
+    pts = sweep_table.floor_plot(data, tmp_path / "floor.png")
+    assert pts["normal_mae"]["glint"] == [(20.0, 18.0)] and "priors+pp" not in pts["normal_mae"]
+    assert (tmp_path / "floor.png").stat().st_size > 10_000
