@@ -580,6 +580,8 @@ MIGRATIONS = (
                 "normal_early": v.get("normal_early", "off")}),  # it read the albedo, voted per view, margin 0.05
     ("the blend option", lambda v: "fresnel" in v and "blend" not in v,
      lambda v: {**{k: x for k, x in v.items() if k != "fresnel"}, "blend": "fresnel" if v["fresnel"] else "envgs"}),
+    ("the normal prior's floor", lambda v: "prior_decay_ref" not in v,
+     lambda v: {**v, "prior_decay_ref": 0.0}),  # a falling prior fell to 0
 )
 
 
