@@ -82,7 +82,8 @@ def floor_plot(data: dict, path: Path, reference: str = "priors") -> dict:
         for j, label in enumerate(labels):
             xs, ys = [], []
             for level, runs in data.items():
-                ref = runs.get(reference, {})
+                ref = runs.get(reference) or next((r for lab, r in sorted(runs.items())  # or a folder's copy
+                                                   if lab.startswith(reference + "+")), {})
                 for room, row in runs.get(label, {}).items():
                     if room in ref and math.isfinite(row[key]) and math.isfinite(ref[room][key]):
                         xs.append(ref[room][key])

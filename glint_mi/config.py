@@ -148,12 +148,13 @@ class LossConfig:
     #                                      keeps its weight) | depth,normal | depth. With near-exact priors the normal
     #                                      prior cost 3DGS 0.43 dB on room 7301 and the depth prior gained 0.31;
     #                                      decided on the tuning rooms (docs/results/prior_sweep, docs/decisions.md)
-    prior_decay_ref: float = 0.0         # deg; 0: the falling normal prior falls to 0. > 0: it falls to min(1, (ref /
-    #                                      a)^2) of its weight, a the median angle between the normal prior and the
-    #                                      planes of the SfM points (RayBank.normal_prior_sfm_agreement, in
-    #                                      report.json): inverse-variance weighting, the full weight for priors that
-    #                                      agree with SfM to ref deg. Unmeasurable (no SfM tracks): falls to 0, said
-    #                                      in the log and report. Needs prior_decay_terms: normal
+    prior_decay_ref: float = 8.0         # deg; > 0: the falling normal prior falls to min(1, (ref / a)^2) of its
+    #                                      weight, a the median angle between the normal prior and the planes of the
+    #                                      SfM points (RayBank.normal_prior_sfm_agreement, in report.json): the
+    #                                      inverse-variance weight, the full weight for priors that agree with SfM
+    #                                      to ref deg. 0, or a not measurable (no SfM tracks; said in the log and
+    #                                      report): it falls to 0. Needs prior_decay_terms: normal. Decided on the
+    #                                      tuning rooms at three levels of prior error (docs/results/prior_sweep)
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator

@@ -25,7 +25,7 @@ GLINT_PHOTO = dict(w_l1=_GLINT.w_l1, w_dssim=_GLINT.w_dssim)  # GLINT's photomet
 # out), and no baseline here has a transparency a cue could supervise except TSGS, whose paper takes a segmenter's
 # masks instead
 WITH_PRIORS = dict(priors="all", **GLINT_PHOTO, **{k: getattr(_GLINT, k) for k in (
-    "w_depth", "w_normal", "prior_decay", "prior_decay_terms")})
+    "w_depth", "w_normal", "prior_decay", "prior_decay_terms", "prior_decay_ref")})
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
              trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage

@@ -637,4 +637,6 @@ def test_sweep_table_labels_levels_and_folders(tmp_path):
     data["1.0"]["glint"]["scene_1"]["normal_mae"] = 18.0
     pts = sweep_table.floor_plot(data, tmp_path / "floor.png")
     assert pts["normal_mae"]["glint"] == [(20.0, 18.0)] and "priors+pp" not in pts["normal_mae"]
+    del data["1.0"]["priors"]  # every folder given with a suffix: the reference is its copy
+    assert sweep_table.floor_plot(data, tmp_path / "floor.png")["normal_mae"]["glint"] == [(20.0, 18.0)]
     assert (tmp_path / "floor.png").stat().st_size > 10_000

@@ -250,7 +250,7 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, prior_decay_terms="depth,normal",
-                               components="interface")
+                               prior_decay_ref=0.0, components="interface")
     fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, sets={"interface": 0}, dropped={},
                            bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
     scale = lambda it: Trainer.stage(fake, it)["prior_scale"]
