@@ -3,7 +3,8 @@
 #   bash docs/results/prior_sweep/drive.sh DATA OUT [PY] [PART] [VALUES]
 # DATA: where the tuning rooms 7301 and 7302 are (generated here if missing) and the level folders go; OUT: the
 # benchmark folders. A level folder links every file of its room except priors/, which it derives itself.
-# PART: see (item 4, the see-through share; VALUES: which P, default all in the declared order), errors (item 3 at
+# PART: see (item 4, the see-through share; VALUES: which P, default all in the declared order), check98 (DATA: the
+# rooms 9801-9804; the prior schedule checked there, then keep98.sh OUT), errors (item 3 at
 # the bench budget), converged (item 3 at 120 epochs with growth) or all (default). Two lanes = two calls with
 # different VALUES (each benchmark runs one Dr.Jit thread).
 set -uo pipefail
@@ -11,6 +12,7 @@ DATA=${1:?DATA}; OUT=${2:?OUT}; PY=${3:-.venv/bin/python}; PART=${4:-all}; VALUE
 ROOMS="7301 7302"
 run() { echo "=== $(date -u +%FT%TZ) $*"; "$@"; echo "=== rc=$? $(date -u +%FT%TZ)"; }
 for s in $ROOMS; do
+  [ "$PART" = check98 ] && break  # its DATA holds the rooms 9801-9804 (docs/results/converge_98xx generates them)
   [ -f "$DATA/r$s/scene_$s/meta.json" ] || run $PY -m glint_mi.dataset make "$DATA/r$s" --scenes 1 --seed $s \
       --preset bench --views 48 --spp 256 --renderer cycles
 done
@@ -73,5 +75,16 @@ if [ "$PART" = converged ] || [ "$PART" = all ]; then  # 120 epochs with growth 
       run ${B/epochs=40/epochs=120} --data "$DATA/levels/${model}_e$f" --methods glint --set densify_top=0.12 \
           --set densify_grad_rel=0.05 --out "$OUT/grow120_${model}_e$f"
     done
+  done
+fi
+if [ "$PART" = check98 ]; then  # thirty-seventh session: the prior schedule on rooms 9801-9804 (declared in README)
+  # DATA: the 98xx rooms; two lanes = the halves 9801-9802 (ab) and 9803-9804 (cd), each a folder of links
+  for h in ab cd; do
+    D="$OUT/data98_$h"; mkdir -p "$D"
+    case $h in ab) rs="9801 9802";; cd) rs="9803 9804";; esac
+    for s in $rs; do ln -sfn "$DATA/scene_$s" "$D/scene_$s"; done
+    run $B --data "$D" --methods glint --set prior_decay=1.0 --out "$OUT/b40_const_$h"
+    run $B --data "$D" --methods priors,glint --set prior_decay_ref=0 --out "$OUT/b40_nd_$h"
+    run $B --data "$D" --methods glint --set prior_decay_ref=8 --out "$OUT/b40_sfmfloor_$h"
   done
 fi

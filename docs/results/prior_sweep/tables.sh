@@ -29,3 +29,15 @@ R=7301@e0.5,7302@e0.5,7301@e1,7302@e1,7301@e2.0,7302@e2.0
       --switch sfmfloor="$G/bench_realistic_{level}_sfmfloor" --floor priors
   $PY benchmarks/tuning_rule.py --confirm --rooms $R --base "$G/bench_realistic_{level}" \
       --switch sfmfloor="$G/bench_realistic_{level}_sfmfloor" --floor priors; } > docs/results/prior_sweep/rule_37.md
+# the check on rooms 9801-9804 (declared, thirty-seventh session): keep98.sh gathers the runs into groups/check98_*
+if [ -d $G/check98_sfmfloor ]; then
+  { echo "The prior schedule checked on rooms 9801-9804 (declared before its runs; never tuned on): seed 0, 40 epochs at"
+    echo "96 x 54. normaldecay against the constant weights it replaced, then sfmfloor against normaldecay (--confirm)."
+    echo
+    $PY benchmarks/sweep_table.py --by-room "b40=$G/check98_const:const,$G/check98_nd:normaldecay,$G/check98_sfmfloor:sfmfloor"
+    echo
+    $PY benchmarks/tuning_rule.py --confirm --rooms 9801,9802,9803,9804 --base $G/check98_const \
+        --switch normaldecay=$G/check98_nd --floor priors
+    $PY benchmarks/tuning_rule.py --confirm --rooms 9801,9802,9803,9804 --base $G/check98_nd \
+        --switch sfmfloor=$G/check98_sfmfloor --floor priors; } > docs/results/prior_sweep/check98.md
+fi
