@@ -6,7 +6,7 @@ for p in 1.0 0.8 0.6 0.4 0.2; do
   x="$p=$G/see_$p,$G/see_${p}_cuephoto:cue"
   case $p in 1.0|0.6) x="$x,$G/see_${p}_priorphoto:pp,$G/see_${p}_bothphoto:both,$G/see_${p}_halfprior:half,$G/see_${p}_normaldecay:nd";; esac
   [ $p = 0.6 ] && x="$x,$G/see_0.6_nonormal:nonormal"
-  [ $p = 0.2 ] && x="$x,$G/see_0.2_normaldecay:nd"
+  [ $p = 0.2 ] && x="$x,$G/see_0.2_normaldecay:nd,$G/see_0.2_sfmfloor:sfmfloor"
   A+=("$x")
 done
 $PY benchmarks/sweep_table.py --by-room "${A[@]}" --out docs/results/prior_sweep/see_through.md > /dev/null
@@ -19,6 +19,8 @@ for l in e0.5 e1 e2.0; do
   c=$G/const_bench_realistic_$l; [ $l = e1 ] && c=$G/see_0.6
   E+=("$l=$c:const,$G/bench_realistic_$l:normaldecay,$G/bench_realistic_${l}_sfmfloor:sfmfloor")
 done
+# the realistic-v1 model (errors drawn independently in every view), 7301 only, the default since (sfmfloor)
+for l in e0.5 e2.0; do E+=("v1-$l=$G/bench_realistic-v1_$l:sfmfloor"); done
 $PY benchmarks/sweep_table.py --by-room "${E[@]}" --out docs/results/prior_sweep/errors.md \
     --floor-plot docs/results/prior_sweep/errors_floor.png > /dev/null
 R=7301@e0.5,7302@e0.5,7301@e1,7302@e1,7301@e2.0,7302@e2.0
