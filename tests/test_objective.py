@@ -261,7 +261,6 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     assert fake.cfg.prior_decay_terms == "normal" and scale(100) == 1.0 and scale(150) == pytest.approx(0.5)
     fake.prior_floor = 0.4  # prior_decay_ref: the normal prior falls to its floor from SfM agreement, not to 0
     assert scale(100) == 1.0 and scale(150) == pytest.approx(0.7) and scale(200) == pytest.approx(0.4)
-    fake.prior_floor = 0.0
 
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
     assert st["depth"] and st["normal"]

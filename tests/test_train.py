@@ -714,22 +714,28 @@ def test_gpu_preset_is_the_papers_budget(tmp_path):
     assert (v.width, v.height) == (480, 270) and v.load_image().shape == (270, 480, 3)
 
 
+def _surface_samples(v, rng, n: int):
+    """``n`` random pixels of view ``v`` that see a surface: (cols, rows, ray directions, distances along the rays to
+    the ground-truth surface, the view's ground truth) - SfM-like features placed on the true geometry."""
+    gt = v.load_gt()
+    ys, xs = np.nonzero(gt["depth"] > 0)
+    k = rng.choice(len(xs), n, replace=False)
+    xs, ys = xs[k], ys[k]
+    d = pixel_rays(v, np.stack([xs, ys], -1))
+    return xs, ys, d, gt["depth"][ys, xs] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0]))), gt
+
+
 def test_depth_prior_alignment_to_sfm_points(room, rng):
     """align_depth_priors recovers each view's unknown prior scale (recorded in PRIORS.json) from metric points,
     with a third of them hidden behind surfaces (outliers); the fitted (w, q) reach the batch."""
     import json
 
-    from glint_mi.training.batch import RayBank, pixel_rays
+    from glint_mi.training.batch import RayBank
     ds = load_dataset(room)
     bank = RayBank(ds.train_views, room)
     pts = []
     for v in ds.train_views:  # metric surface points from the ground-truth depth of random pixels
-        gt = v.load_gt()
-        ys, xs = np.nonzero(gt["depth"] > 0)
-        k = rng.choice(len(xs), 60, replace=False)
-        d = pixel_rays(v, np.stack([xs[k], ys[k]], -1))
-        fwd = (v.c2w[:3, :3] @ np.array([0, 0, 1.0]))
-        dist = gt["depth"][ys[k], xs[k]] / (d @ fwd)
+        _, _, d, dist, _ = _surface_samples(v, rng, 60)
         dist[:20] *= 1.3  # occluded: behind the visible surface
         pts.append(v.c2w[:3, 3] + d * dist[:, None])
     rep = bank.align_depth_priors(np.concatenate(pts))
@@ -784,19 +790,14 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     truth: ~0 for a prior equal to the true normals, the tilt for one tilted by a known angle everywhere (each
     normal turned 20 deg about an axis perpendicular to it); no points or no normal prior say why. The floor
     prior_decay_ref gives follows (ref / a)^2, capped at 1, and 0 where it was not measured."""
-    from glint_mi.training.batch import RayBank, pixel_rays
+    from glint_mi.training.batch import RayBank
     from glint_mi.training.inputs import normal_prior_floor
 
     ds = load_dataset(room)
     bank = RayBank(ds.train_views, room)
     obs, true_n = {}, []
     for i, v in enumerate(ds.train_views):  # features on the ground-truth surfaces
-        gt = v.load_gt()
-        ys, xs = np.nonzero(gt["depth"] > 0)
-        k = rng.choice(len(xs), 200, replace=False)
-        xs, ys = xs[k], ys[k]
-        d = pixel_rays(v, np.stack([xs, ys], -1))
-        dist = gt["depth"][ys, xs] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))
+        xs, ys, d, dist, gt = _surface_samples(v, rng, 200)
         obs[v.name] = (np.stack([xs + 0.5, ys + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])
         true_n.append(gt["normal"].reshape(-1, 3) @ bank.axes[i].astype(np.float64))  # world -> OpenCV camera
     pts = np.concatenate([o[1] for o in obs.values()])
@@ -829,7 +830,7 @@ def test_sfm_see_through_cue(room, rng):
     reaches the batch and gates the L_trans masks; the trainer builds it when there is no albedo prior."""
     import json
 
-    from glint_mi.training.batch import RayBank, pixel_rays
+    from glint_mi.training.batch import RayBank
     from glint_mi.training.losses import transparency_masks
 
     ds = load_dataset(room)
@@ -838,12 +839,7 @@ def test_sfm_see_through_cue(room, rng):
     bank.depth_affine = np.array([[rec[v.name]["depth_scale"], rec[v.name]["depth_shift"]] for v in bank.views])
     obs, labels = {}, {}
     for v in ds.train_views:  # features on the ground-truth surface; those in the left third 1.5x deeper
-        gt = v.load_gt()
-        ys, xs = np.nonzero(gt["depth"] > 0)
-        k = rng.choice(len(xs), 25, replace=False)
-        xs, ys = xs[k], ys[k]
-        d = pixel_rays(v, np.stack([xs, ys], -1))
-        dist = gt["depth"][ys, xs] / (d @ (v.c2w[:3, :3] @ np.array([0, 0, 1.0])))
+        xs, ys, d, dist, _ = _surface_samples(v, rng, 25)
         through = xs < v.width // 3
         dist = np.where(through, 1.5 * dist, dist)
         obs[v.name] = (np.stack([xs + 0.5, ys + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])

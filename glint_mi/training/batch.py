@@ -200,16 +200,17 @@ class RayBank:
             return {**out, "why": "no SfM points and tracks"}
         pts = np.asarray(points, np.float64)
         tree = cKDTree(pts)
-        pix = self.observation_pixels(observations, points=True)
+        _, idx = tree.query(pts, k)  # each point's plane, once (a point is tracked in many views)
+        nb = pts[idx] - pts[idx].mean(1, keepdims=True)
+        lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
+        flat = lam[:, 0] < planarity * np.maximum(lam[:, 1], 1e-300)
+        plane = vec[:, :, 0]
         angles = []
-        for i, (row, col, _, xyz) in pix.items():
-            _, idx = tree.query(xyz, k)
-            nb = pts[idx] - pts[idx].mean(1, keepdims=True)
-            lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
-            flat = lam[:, 0] < planarity * np.maximum(lam[:, 1], 1e-300)
+        for i, (row, col, _, xyz) in self.observation_pixels(observations, points=True).items():
+            _, j = tree.query(xyz)  # the tracked feature's own 3D point
             n_prior = self.prior_normals_world(i)[row, col]
-            ok = flat & (np.linalg.norm(n_prior, axis=1) > 0.5)
-            cos = np.abs(np.einsum("ni,ni->n", vec[ok, :, 0], n_prior[ok])) / np.linalg.norm(n_prior[ok], axis=1)
+            ok = flat[j] & (np.linalg.norm(n_prior, axis=1) > 0.5)
+            cos = np.abs(np.einsum("ni,ni->n", plane[j[ok]], n_prior[ok])) / np.linalg.norm(n_prior[ok], axis=1)
             angles.append(np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
         a = np.concatenate(angles) if angles else np.zeros(0)
         out["observations"] = int(len(a))

@@ -19,7 +19,7 @@ from glint_mi.model.gaussians import GaussianSet
 from glint_mi.runs import RunError, atomic_write_text, hold_run, load_run_dataset, read_checkpoint
 from glint_mi.scene import check_settings, initial_sets, read_scene
 from glint_mi.training.components import ComponentsPolicy
-from glint_mi.training.inputs import normal_prior_floor, training_inputs
+from glint_mi.training.inputs import normal_prior_schedule, training_inputs
 from glint_mi.training.optim import RAW_FIELDS, Adam
 from glint_mi.training.refgs import DirectionalGridPart
 from glint_mi.training.strategy import Strategy
@@ -70,10 +70,7 @@ def assemble(tr, resume: bool) -> None:
             glass_of(v)
     tr.bank = training_inputs(tr.ds, cfg, "transmission" in tr.sets, tr.report, tr.log,
                               getattr(tr, "_resume_affine", None))  # set by _load_checkpoint only
-    tr.prior_floor, why = normal_prior_floor(cfg, tr.report.get("normal_prior_sfm"))
-    tr.report["prior_floor"] = {"floor": tr.prior_floor, "why": why}
-    if cfg.prior_decay < 1.0:
-        tr.log(why)
+    tr.prior_floor = normal_prior_schedule(tr.bank, tr.ds, cfg, tr.report, tr.log)
     coarse_banks(tr)
     if not resume:
         glass_cue_check(tr)  # may give the run the 3dgs profile (another kernel): the strategy is built after it

@@ -34,12 +34,6 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
         report["depth_align"] = bank.align_depth_priors(ds.points, seed=cfg.seed)
         log(f"depth prior aligned to the SfM points in {report['depth_align']['aligned_views']} of "
             f"{len(bank.views)} views (the others keep the per-batch fit)")
-    if "normal" in bank.has:  # how far the normal prior is from the SfM points' planes (prior_decay_ref reads it)
-        ag = bank.normal_prior_sfm_agreement(ds.observations(), ds.points)
-        report["normal_prior_sfm"] = ag
-        log(f"normal prior against the SfM points' planes: median {ag['median_deg']:.1f} deg over "
-            f"{ag['observations']} tracked features" if ag["median_deg"] is not None else
-            f"normal prior against the SfM points' planes: not measured ({ag['why']})")
     if cfg.trans_cue != "none" and has_transmission:  # only L_trans and plausibility read it
         cue = bank.see_through_cue(ds.observations(), cfg.cue_margin, cfg.cue_radius, cfg.cue_votes,
                                    cfg.cue_point_share, cfg.cue_photo)
@@ -59,6 +53,24 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
         log(f"SfM depth: {sd['pixels']} training pixels carry a tracked feature's depth"
             + (f" ({sd['why']})" if "why" in sd else ""))
     return bank
+
+
+def normal_prior_schedule(bank: RayBank, ds: Dataset, cfg: TrainConfig, report: dict, log=print) -> float:
+    """The run's floor for the falling normal prior (:func:`normal_prior_floor`), from the normal prior's agreement
+    with the SfM points' planes measured once on the run's bank (not on coarse_to_fine's); both go to ``report``
+    (``normal_prior_sfm``, ``prior_floor``) and the log."""
+    ag = None
+    if "normal" in bank.has:
+        ag = bank.normal_prior_sfm_agreement(ds.observations(), ds.points)
+        report["normal_prior_sfm"] = ag
+        log(f"normal prior against the SfM points' planes: median {ag['median_deg']:.1f} deg over "
+            f"{ag['observations']} tracked features" if ag["median_deg"] is not None else
+            f"normal prior against the SfM points' planes: not measured ({ag['why']})")
+    floor, why = normal_prior_floor(cfg, ag)
+    report["prior_floor"] = {"floor": floor, "why": why}
+    if cfg.prior_decay < 1.0:
+        log(why)
+    return floor
 
 
 def normal_prior_floor(cfg: TrainConfig, agreement: dict | None) -> tuple[float, str]:
