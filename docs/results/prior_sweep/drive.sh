@@ -4,7 +4,8 @@
 # DATA: where the tuning rooms 7301 and 7302 are (generated here if missing) and the level folders go; OUT: the
 # benchmark folders. A level folder links every file of its room except priors/, which it derives itself.
 # PART: see (item 4, the see-through share; VALUES: which P, default all in the declared order), check98 (DATA: the
-# rooms 9801-9804; the prior schedule checked there, then keep98.sh OUT), errors (item 3 at
+# rooms 9801-9804; the prior schedule checked there, then keep98.sh OUT), errors38 (item 3's remaining levels with
+# the current defaults; VALUES: the error scales), errors (item 3 at
 # the bench budget), converged (item 3 at 120 epochs with growth) or all (default). Two lanes = two calls with
 # different VALUES (each benchmark runs one Dr.Jit thread).
 set -uo pipefail
@@ -75,6 +76,18 @@ if [ "$PART" = converged ] || [ "$PART" = all ]; then  # 120 epochs with growth 
       run ${B/epochs=40/epochs=120} --data "$DATA/levels/${model}_e$f" --methods glint --set densify_top=0.12 \
           --set densify_grad_rel=0.05 --out "$OUT/grow120_${model}_e$f"
     done
+  done
+fi
+if [ "$PART" = errors38 ]; then  # thirty-eighth session: item 3 with the current defaults (prior_decay_ref 8)
+  # VALUES: the realistic model's error scales still missing (0.75 1.25); then realistic-v1 on 7302 at 0.5 and 2.0
+  # (7301's runs at those levels are bench_realistic-v1_e*, already the current defaults: skipped as complete)
+  for f in $VALUES; do
+    for s in $ROOMS; do level "realistic_e$f" $s --model realistic --error-scale $f; done
+    run $B --data "$DATA/levels/realistic_e$f" --methods priors,glint --out "$OUT/bench_realistic_e${f}_now"
+  done
+  for f in 0.5 2.0; do
+    level "realistic-v1_e$f" 7302 --model realistic-v1 --error-scale $f
+    run $B --data "$DATA/levels/realistic-v1_e$f" --methods priors,glint --out "$OUT/bench_realistic-v1_e$f"
   done
 fi
 if [ "$PART" = check98 ]; then  # thirty-seventh session: the prior schedule on rooms 9801-9804 (declared in README)
