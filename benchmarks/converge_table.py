@@ -5,7 +5,8 @@ Each ``EPOCHS:CAPACITY=FOLDER[,FOLDER...]`` names ``python -m glint_mi.benchmark
 epochs at that capacity level (a label: ``default``, ``grow``, ``wide``, ordered as given by ``--capacities``). A
 method's curve uses the ``--curve-rooms`` it has at every point, seed 0. A method has *stopped gaining* at the
 smallest (epochs, capacity) whose mean PSNR is within ``--tol`` dB (0.2) of the next doubling of the epochs and of
-the next capacity level, where those were run; if the largest point still gains, it says so and takes that point.
+the next capacity level, where those were run; a point flat in epochs whose next capacity was not run is taken
+as undecided in capacity; if every doubling run still gains, it says so and takes the best point.
 The converged table then gives each method at its point over every room and seed found there.
 
     .venv/bin/python benchmarks/converge_table.py 60:grow=E60 120:grow=E120A,E120B 240:grow=E240 120:default=D120 \\
@@ -95,20 +96,31 @@ def curve_points(rows, method, rooms):
 
 
 def stopped(points: dict, capacities: list[str], tol: float):
-    """(epochs, capacity, note): the smallest point within tol of its next doubling and next capacity level."""
+    """(epochs, capacity, note): the smallest point within tol of its next doubling and next capacity level. Without
+    such a point: the smallest within tol of its next doubling whose next capacity was not run (undecided in
+    capacity, said), else the best point, saying whether any doubling was run at all."""
     psnr = {p: mean(rs, "psnr") for p, rs in points.items()}
     order = sorted(points, key=lambda p: (p[0], capacities.index(p[1]) if p[1] in capacities else 99))
+    flat_in_epochs = None  # the first point that stopped gaining in epochs, its next capacity not run
     for e, c in order:
         nxt_e = [p for p in points if p[1] == c and p[0] == 2 * e]
         ci = capacities.index(c) if c in capacities else -1
         nxt_c = [p for p in points if p[0] == e and ci >= 0 and ci + 1 < len(capacities) and p[1] == capacities[ci + 1]]
         last_cap = ci < 0 or ci + 1 >= len(capacities)
-        if not nxt_e or (not nxt_c and not last_cap):  # both neighbours are needed (no larger capacity: the budget's)
+        if not nxt_e:
+            continue
+        if not nxt_c and not last_cap:  # both neighbours are needed (no larger capacity: the budget's)
+            g = psnr[nxt_e[0]] - psnr[(e, c)]
+            if g < tol and flat_in_epochs is None:
+                flat_in_epochs = (e, c, f"undecided: x2 epochs {g:+.2f} dB, the next capacity "
+                                        f"({capacities[ci + 1]}) not run")
             continue
         gains = [psnr[q] - psnr[(e, c)] for q in nxt_e + nxt_c]
         if all(g < tol for g in gains):
             return e, c, "stopped gaining: " + ", ".join(
                 f"{'x2 epochs' if q[1] == c else q[1]} {g:+.2f} dB" for q, g in zip(nxt_e + nxt_c, gains))
+    if flat_in_epochs is not None:
+        return flat_in_epochs
     best = max(points, key=lambda p: psnr[p])
     decidable = any(q[1] == c and q[0] == 2 * e for e, c in points for q in points)
     return best[0], best[1], ("still gaining at every point run: its best point taken" if decidable else

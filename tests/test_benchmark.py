@@ -258,6 +258,32 @@ def test_budget_curve_compares_like_with_like(tmp_path):
     assert (tmp_path / "o" / "budget.png").stat().st_size > 0
 
 
+def test_converge_table_finds_where_each_method_stopped_gaining():
+    """benchmarks/converge_table.py's stopping rule: the smallest point within tol of its next doubling and its next
+    capacity; a point flat in epochs whose next capacity was not run is taken as undecided in capacity (not called
+    'still gaining'); a method whose every doubling gained is still gaining; without any doubling, undecided."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import converge_table
+
+    caps = ["default", "grow", "wide"]
+    pts = lambda d: {k: [{"psnr": v}] for k, v in d.items()}
+    # flat in epochs and in capacity at (120, grow): stopped there, not at 60 (which still gains 1 dB)
+    e, c, why = converge_table.stopped(pts({(60, "grow"): 30.0, (120, "grow"): 31.0, (240, "grow"): 31.1,
+                                             (120, "wide"): 31.15}), caps, 0.2)
+    assert (e, c) == (120, "grow") and why.startswith("stopped gaining") and "+0.10" in why and "wide +0.15" in why
+    # a longer run ends lower (the 9801 baselines), the next capacity not run: undecided, at the point, said
+    e, c, why = converge_table.stopped(pts({(120, "grow"): 34.21, (240, "grow"): 33.06}), caps, 0.2)
+    assert (e, c) == (120, "grow") and why.startswith("undecided") and "-1.15" in why and "(wide) not run" in why
+    # the largest capacity needs no next one: decided by its doubling alone
+    e, c, why = converge_table.stopped(pts({(120, "wide"): 34.0, (240, "wide"): 34.1}), caps, 0.2)
+    assert (e, c) == (120, "wide") and why.startswith("stopped gaining")
+    # every doubling gains: still gaining, the best point taken
+    e, c, why = converge_table.stopped(pts({(60, "wide"): 30.0, (120, "wide"): 31.0}), caps, 0.2)
+    assert (e, c) == (120, "wide") and why.startswith("still gaining")
+    e, c, why = converge_table.stopped(pts({(120, "grow"): 35.0}), caps, 0.2)
+    assert (e, c) == (120, "grow") and why.startswith("undecided: no point")
+
+
 def test_profile_step_measures_the_gpu_targets(tmp_path):
     """benchmarks/profile_step.py --targets (issue 43's figures; the GPU runs it with --variant cuda_ad_rgb): the
     training rate at a given batch, a 480 x 270 view's render rate and the paper's budget at that rate, in the
