@@ -6,7 +6,7 @@ for p in 1.0 0.8 0.6 0.4 0.2; do
   x="$p=$G/see_$p,$G/see_${p}_cuephoto:cue"
   case $p in 1.0|0.6) x="$x,$G/see_${p}_priorphoto:pp,$G/see_${p}_bothphoto:both,$G/see_${p}_halfprior:half,$G/see_${p}_normaldecay:nd";; esac
   [ $p = 0.6 ] && x="$x,$G/see_0.6_nonormal:nonormal"
-  [ $p = 0.2 ] && x="$x,$G/see_0.2_normaldecay:nd,$G/see_0.2_sfmfloor:sfmfloor"
+  [ $p = 0.2 ] && x="$x,$G/see_0.2_normaldecay:nd,$G/see_0.2_sfmfloor:sfmfloor,$G/sfmdepth_see02:sfmdepth"
   A+=("$x")
 done
 $PY benchmarks/sweep_table.py --by-room "${A[@]}" --out docs/results/prior_sweep/see_through.md > /dev/null
@@ -15,12 +15,18 @@ $PY benchmarks/sweep_table.py --by-room e0.5=$G/const_bench_realistic_e0.5 e0.75
 # item 3, thirty-seventh session: the constant weights, normaldecay (the default it replaced) and sfmfloor (the
 # default since) at each level of prior error, and the floor figure (each run's normals and AbsRel against its priors')
 E=()
-for l in e0.5 e1 e2.0; do
+for l in e0.5 e0.75 e1 e1.25 e2.0; do
   c=$G/const_bench_realistic_$l; [ $l = e1 ] && c=$G/see_0.6
-  E+=("$l=$c:const,$G/bench_realistic_$l:normaldecay,$G/bench_realistic_${l}_sfmfloor:sfmfloor")
+  case $l in  # 0.75 and 1.25 (thirty-eighth session): the current defaults only (0.75's constant weights: thirty-sixth)
+    e0.75) E+=("$l=$c:const,$G/bench_realistic_${l}_now:sfmfloor");;
+    e1.25) E+=("$l=$G/bench_realistic_${l}_now:sfmfloor");;
+    *) E+=("$l=$c:const,$G/bench_realistic_$l:normaldecay,$G/bench_realistic_${l}_sfmfloor:sfmfloor");;
+  esac
 done
-# the realistic-v1 model (errors drawn independently in every view), 7301 only, the default since (sfmfloor)
+# the realistic-v1 model (errors drawn independently in every view), the default since (sfmfloor); 7302 since the
+# thirty-eighth session
 for l in e0.5 e2.0; do E+=("v1-$l=$G/bench_realistic-v1_$l:sfmfloor"); done
+E[-1]="${E[-1]},$G/sfmdepth_v1e2:sfmdepth"  # the product's w_sfm_depth=0.1 (thirty-eighth session)
 $PY benchmarks/sweep_table.py --by-room "${E[@]}" --out docs/results/prior_sweep/errors.md \
     --floor-plot docs/results/prior_sweep/errors_floor.png > /dev/null
 R=7301@e0.5,7302@e0.5,7301@e1,7302@e1,7301@e2.0,7302@e2.0
