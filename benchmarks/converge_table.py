@@ -127,6 +127,34 @@ def stopped(points: dict, capacities: list[str], tol: float):
                               "undecided: no point has its next doubling run yet; its best point taken")
 
 
+def compare(glint_rows, rows):
+    """GLINT minus a method on the (room, seed) runs both have: the mean differences (PSNR overall, on and off the
+    glass, normal MAE), how many runs GLINT is higher in, the PSNR difference by seed ({seed: (mean, rooms)}) and the
+    standard error of the mean PSNR difference (paired; nan with one pair). None without a common run."""
+    g = {(r["scene"], r["seed"]): r for r in glint_rows}
+    pairs = [(g[(r["scene"], r["seed"])], r) for r in rows if (r["scene"], r["seed"]) in g]
+    if not pairs:
+        return None
+    d = {k: statistics.fmean([a[k] - b[k] for a, b in pairs if a[k] == a[k] and b[k] == b[k]] or [math.nan])
+         for k in ("psnr", "psnr_glass", "psnr_off_glass", "normal_mae")}
+    per_seed = {}
+    for s_ in sorted({a["seed"] for a, _ in pairs}):
+        v = [a["psnr"] - b["psnr"] for a, b in pairs if a["seed"] == s_]
+        per_seed[s_] = (statistics.fmean(v), len(v))
+    diffs = [a["psnr"] - b["psnr"] for a, b in pairs]
+    se = statistics.stdev(diffs) / math.sqrt(len(diffs)) if len(diffs) > 1 else math.nan
+    return {"n": len(pairs), "wins": sum(a["psnr"] > b["psnr"] for a, b in pairs), "mean": d, "per_seed": per_seed,
+            "se": se}
+
+
+def seed_spread(rows) -> float:
+    """Mean |PSNR(seed k) - PSNR(seed 0)| over the (room, seed k > 0) runs whose seed-0 run is there: how far one run
+    of a room moves with the seed alone (nan without such a pair)."""
+    s0 = {r["scene"]: r["psnr"] for r in rows if r["seed"] == 0}
+    v = [abs(r["psnr"] - s0[r["scene"]]) for r in rows if r["seed"] != 0 and r["scene"] in s0]
+    return statistics.fmean(v) if v else math.nan
+
+
 def fmt(v, d):
     return "-" if v != v else f"{v:.{d}f}"
 
@@ -200,18 +228,24 @@ def main() -> None:
     if "glint" in at:
         table += ["", "GLINT against each method at their points, on the (room, seed) runs both have (PSNR overall / "
                   "on glass / off glass, dB; normal MAE, deg):", ""]
-        g = {(r["scene"], r["seed"]): r for r in at["glint"]}
         for m, rs in at.items():
             if m == "glint":
                 continue
-            pairs = [(g[(r["scene"], r["seed"])], r) for r in rs if (r["scene"], r["seed"]) in g]
-            if not pairs:
+            c = compare(at["glint"], rs)
+            if c is None:
                 continue
-            d = {k: statistics.fmean(a[k] - b[k] for a, b in pairs if a[k] == a[k] and b[k] == b[k])
-                 for k in ("psnr", "psnr_glass", "psnr_off_glass", "normal_mae")}
-            wins = sum(a["psnr"] > b["psnr"] for a, b in pairs)
-            table.append(f"- against {m} ({len(pairs)} runs, GLINT higher in {wins}): {d['psnr']:+.2f} / "
-                         f"{d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} dB; normals {d['normal_mae']:+.1f} deg")
+            d = c["mean"]
+            line = (f"- against {m} ({c['n']} runs, GLINT higher in {c['wins']}): {d['psnr']:+.2f} / "
+                    f"{d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} dB; normals {d['normal_mae']:+.1f} deg")
+            if len(c["per_seed"]) > 1:
+                line += ("; PSNR by seed " + ", ".join(f"{s_}: {v:+.2f} ({n} rooms)" for s_, (v, n) in
+                                                        sorted(c["per_seed"].items()))
+                         + f"; standard error {c['se']:.2f} dB")
+            table.append(line)
+        spread = [f"{m} {seed_spread(rs):.2f}" for m, rs in at.items() if seed_spread(rs) == seed_spread(rs)]
+        if spread:
+            table += ["", "Run-to-run spread (mean |PSNR seed k - seed 0| over the rooms run with both, dB): "
+                      + ", ".join(spread)]
     (args.out / "converged.md").write_text("\n".join(table) + "\n")
     print("\n".join(md) + "\n\n" + "\n".join(table))
     try:

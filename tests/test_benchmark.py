@@ -284,6 +284,26 @@ def test_converge_table_finds_where_each_method_stopped_gaining():
     assert (e, c) == (120, "grow") and why.startswith("undecided: no point")
 
 
+def test_converge_table_compares_glint_seed_by_seed():
+    """converge_table.compare pairs GLINT with a method on (room, seed), gives the difference by seed and its paired
+    standard error; seed_spread is how far a room moves with the seed alone. Hand-computed figures."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import converge_table
+
+    row = lambda sc, sd, p: {"scene": sc, "seed": sd, "psnr": p, "psnr_glass": p - 3, "psnr_off_glass": p + 1,
+                             "normal_mae": 10.0}
+    g = [row("a", 0, 30.0), row("b", 0, 32.0), row("a", 1, 31.0), row("b", 1, 31.0)]
+    o = [row("a", 0, 30.5), row("b", 0, 31.0), row("a", 1, 30.0), row("c", 1, 40.0)]  # c: GLINT has no such run
+    c = converge_table.compare(g, o)
+    assert c["n"] == 3 and c["wins"] == 2
+    assert c["per_seed"] == {0: (0.25, 2), 1: (1.0, 1)}
+    assert abs(c["mean"]["psnr"] - 0.5) < 1e-12 and abs(c["mean"]["psnr_glass"] - 0.5) < 1e-12
+    assert abs(c["se"] - 0.8660254037844386 / 3 ** 0.5) < 1e-9  # stdev of (-0.5, 1, 1) over sqrt(3)
+    assert converge_table.compare(g, [row("z", 0, 1.0)]) is None
+    assert abs(converge_table.seed_spread(g) - 1.0) < 1e-12  # |31-30| and |31-32|
+    assert converge_table.seed_spread([row("a", 0, 30.0)]) != converge_table.seed_spread([row("a", 0, 30.0)])  # nan
+
+
 def test_profile_step_measures_the_gpu_targets(tmp_path):
     """benchmarks/profile_step.py --targets (issue 43's figures; the GPU runs it with --variant cuda_ad_rgb): the
     training rate at a given batch, a 480 x 270 view's render rate and the paper's budget at that rate, in the
