@@ -242,7 +242,7 @@ def main() -> None:
                                                         sorted(c["per_seed"].items()))
                          + f"; standard error {c['se']:.2f} dB")
             table.append(line)
-        spread = [f"{m} {seed_spread(rs):.2f}" for m, rs in at.items() if seed_spread(rs) == seed_spread(rs)]
+        spread = [f"{m} {v:.2f}" for m, v in ((m, seed_spread(rs)) for m, rs in at.items()) if v == v]
         if spread:
             table += ["", "Run-to-run spread (mean |PSNR seed k - seed 0| over the rooms run with both, dB): "
                       + ", ".join(spread)]
