@@ -400,7 +400,8 @@ def test_shell_mesh_walks_the_same_gaussians_on_triangles(room, tmp_path):
 def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
     """benchmarks/glass_pixels.py: on synthetic glass pixels, the run's and the prior's normal errors, the depth
     against the pane's and the share behind it, per subset (t > 0.5 and the rest); on a trained and evaluated run
-    it reads the saved renders and counts every glass pixel of the test views once."""
+    it reads the saved renders and counts every glass pixel of the test views once (``off_glass``: every other
+    valid pixel once)."""
     import sys as _sys
 
     _sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -429,6 +430,9 @@ def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
     n_glass = sum(int(((v.load_gt()["glass"] > 0.5) & (v.load_gt()["depth"] > 0)).sum()) for v in tr.eval_views())
     assert n_glass > 0 and all(len(a) == n_glass for a in got.values())
     assert "| run/run | t>0.5 |" in glass_pixels.table([("run/run", glass_pixels.glass_split(got))])
+    off = glass_pixels.run_pixels(tmp_path / "run", off_glass=True)  # the rest of the valid pixels, each once
+    n_valid = sum(int((v.load_gt()["depth"] > 0).sum()) for v in tr.eval_views())
+    assert all(len(a) == n_valid - n_glass for a in off.values()) and n_valid > n_glass
     import contact_sheet  # benchmarks/contact_sheet.py on the same evaluated run: one row per test view
 
     sheet = contact_sheet.contact_sheet(tmp_path / "run", tmp_path / "sheet.png")
