@@ -98,7 +98,9 @@ def curve_points(rows, method, rooms):
 def stopped(points: dict, capacities: list[str], tol: float):
     """(epochs, capacity, note): the smallest point within tol of its next doubling and next capacity level. Without
     such a point: the smallest within tol of its next doubling whose next capacity was not run (undecided in
-    capacity, said), else the best point, saying whether any doubling was run at all."""
+    capacity, said); else, when every doubling run gains, the largest budget run at the smallest capacity within tol
+    of its next one (still gaining in epochs, stopped in capacity, said); else the best point, saying whether any
+    doubling was run at all."""
     psnr = {p: mean(rs, "psnr") for p, rs in points.items()}
     order = sorted(points, key=lambda p: (p[0], capacities.index(p[1]) if p[1] in capacities else 99))
     flat_in_epochs = None  # the first point that stopped gaining in epochs, its next capacity not run
@@ -123,6 +125,13 @@ def stopped(points: dict, capacities: list[str], tol: float):
         return flat_in_epochs
     best = max(points, key=lambda p: psnr[p])
     decidable = any(q[1] == c and q[0] == 2 * e for e, c in points for q in points)
+    if decidable:  # every doubling gains: at the largest budget run, the smallest capacity flat to its next one
+        top = max(e for e, _ in points)
+        for c in sorted({c for e, c in points if e == top and c in capacities}, key=capacities.index):
+            nxt = (top, capacities[capacities.index(c) + 1]) if capacities.index(c) + 1 < len(capacities) else None
+            if nxt in points and psnr[nxt] - psnr[(top, c)] < tol:
+                return top, c, (f"still gaining in epochs; at the largest budget run the next capacity "
+                                f"({nxt[1]}) {psnr[nxt] - psnr[(top, c)]:+.2f} dB")
     return best[0], best[1], ("still gaining at every point run: its best point taken" if decidable else
                               "undecided: no point has its next doubling run yet; its best point taken")
 

@@ -261,7 +261,8 @@ def test_budget_curve_compares_like_with_like(tmp_path):
 def test_converge_table_finds_where_each_method_stopped_gaining():
     """benchmarks/converge_table.py's stopping rule: the smallest point within tol of its next doubling and its next
     capacity; a point flat in epochs whose next capacity was not run is taken as undecided in capacity (not called
-    'still gaining'); a method whose every doubling gained is still gaining; without any doubling, undecided."""
+    'still gaining'); a method whose every doubling gained is still gaining (at its largest budget, the smallest
+    capacity flat to the next); without any doubling, undecided."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import converge_table
 
@@ -282,6 +283,14 @@ def test_converge_table_finds_where_each_method_stopped_gaining():
     assert (e, c) == (120, "wide") and why.startswith("still gaining")
     e, c, why = converge_table.stopped(pts({(120, "grow"): 35.0}), caps, 0.2)
     assert (e, c) == (120, "grow") and why.startswith("undecided: no point")
+    # still gaining in epochs, flat in capacity at the largest budget (glint-paper on 9801-9802): that budget at the
+    # smaller capacity, not the larger one for its 0.07 dB; a capacity that still gains is not taken
+    e, c, why = converge_table.stopped(pts({(60, "grow"): 35.76, (120, "grow"): 36.23, (120, "wide"): 36.30}), caps,
+                                       0.2)
+    assert (e, c) == (120, "grow") and why.startswith("still gaining in epochs") and "(wide) +0.07" in why
+    e, c, why = converge_table.stopped(pts({(60, "grow"): 35.76, (120, "grow"): 36.23, (120, "wide"): 36.50}), caps,
+                                       0.2)
+    assert (e, c) == (120, "wide") and why.startswith("still gaining at every point")
 
 
 def test_converge_table_compares_glint_seed_by_seed():
