@@ -128,7 +128,8 @@ def stopped(points: dict, capacities: list[str], tol: float):
     if decidable:  # every doubling gains: at the largest budget run, the smallest capacity flat to its next one
         top = max(e for e, _ in points)
         for c in sorted({c for e, c in points if e == top and c in capacities}, key=capacities.index):
-            nxt = (top, capacities[capacities.index(c) + 1]) if capacities.index(c) + 1 < len(capacities) else None
+            i = capacities.index(c) + 1
+            nxt = (top, capacities[i]) if i < len(capacities) else None
             if nxt in points and psnr[nxt] - psnr[(top, c)] < tol:
                 return top, c, (f"still gaining in epochs; at the largest budget run the next capacity "
                                 f"({nxt[1]}) {psnr[nxt] - psnr[(top, c)]:+.2f} dB")
