@@ -100,6 +100,7 @@ def apply_floor(verdict: dict, pairs: dict, floors: dict, method: str) -> dict:
     over = lambda r: any(pairs[r][1][c] > floors[r][c] for c in ("normal_mae", "absrel"))
     missed = [r for r in sorted(pairs) if r not in floors or over(r)]
     return {**verdict, "floor_method": method, "floor_missed": missed,
+            "floor_absent": [r for r in missed if r not in floors],
             "adopted": verdict["adopted"] and not missed, "stays": verdict["stays"] and not missed}
 
 
@@ -125,8 +126,12 @@ def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = Fa
               + (f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**" if v["enough"]
                  else f"**Too few rooms to decide** ({len(rooms)})."), ""]
     if "floor_method" in v:
-        lines.insert(-1, f"Floor (`{v['floor_method']}`: normals and AbsRel at or under it in every room): "
-                     + (f"**not met** in {', '.join(v['floor_missed'])}." if v["floor_missed"] else "met."))
+        over, absent, m = [r for r in v["floor_missed"] if r not in v["floor_absent"]], v["floor_absent"], v["floor_method"]
+        lines.insert(-1, f"Floor (`{m}`: normals and AbsRel at or under it in every room): "
+                     + (f"**not met** in {', '.join(over)}. " if over else "")
+                     + (f"**No `{m}` run** for {', '.join(absent)} in the base folder (add it: `python -m "
+                        f"glint_mi.benchmark --methods {m}` with the base's --data and --out)." if absent else "")
+                     + ("" if v["floor_missed"] else "met."))
     return "\n".join(lines)
 
 

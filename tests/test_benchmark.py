@@ -619,7 +619,7 @@ def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
     write("sw_b_on", "2", 0, psnr=0.5)  # 2@b: no priors row there
     tuning_rule.main(["--rooms", "1@a,2@a,2@b", "--base", str(tmp_path / "sw_{level}"), "--switch",
                       f"on={tmp_path / 'sw_{level}_on'}", "--floor", "priors", "--out", str(out)])
-    assert "**not met** in 2@b." in out.read_text()
+    assert "**No `priors` run** for 2@b" in out.read_text() and "**Not adopted.**" in out.read_text()
     tuning_rule.main(["--confirm", "--rooms", "1@a,2@a,1@b", "--base", str(tmp_path / "sw_{level}"), "--switch",
                       f"on={tmp_path / 'sw_{level}_on'}", "--floor", "priors", "--out", str(out)])
     assert "**Reverts.**" in out.read_text()  # the check rule reads the floor too: over the priors in 1@b
