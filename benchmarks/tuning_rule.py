@@ -126,7 +126,8 @@ def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = Fa
               + (f"**{'Adopted' if v['adopted'] else 'Not adopted'}.**" if v["enough"]
                  else f"**Too few rooms to decide** ({len(rooms)})."), ""]
     if "floor_method" in v:
-        over, absent, m = [r for r in v["floor_missed"] if r not in v["floor_absent"]], v["floor_absent"], v["floor_method"]
+        absent, m = v["floor_absent"], v["floor_method"]
+        over = [r for r in v["floor_missed"] if r not in absent]
         lines.insert(-1, f"Floor (`{m}`: normals and AbsRel at or under it in every room): "
                      + (f"**not met** in {', '.join(over)}. " if over else "")
                      + (f"**No `{m}` run** for {', '.join(absent)} in the base folder (add it: `python -m "
