@@ -30,6 +30,7 @@ PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_
              trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage
              prior_decay=1.0,  # the paper's prior weights are constant
+             coarse_to_fine="",  # full-size images (as the paper): its whole-image depth fit refits those only
              prior_layer="interface",  # the priors supervise the interface everywhere
              normal_weight="near")  # the release's depth scale of the normal prior and the consistency
 METHOD_3DGS = dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALPHA, w_consistency=0.0, **NO_PRIORS,

@@ -153,3 +153,17 @@ def test_config_saved_before_prior_layer_resumes_as_it_was_trained(tmp_path):
     assert TrainConfig.load(p).prior_layer == "interface"
     assert TrainConfig.for_preset("tiny").prior_layer == "nearer"
     assert config_for("glint-paper", "tiny").prior_layer == config_for("tsgs", "tiny").prior_layer == "interface"
+
+
+
+def test_bench_preset_draws_early_patches_from_coarser_images_for_every_method():
+    """The bench preset's coarse-to-fine patches (docs/results/coarse_to_fine) are a way of spending its rays, as its
+    epochs are: every method gets them but `glint-paper` (its whole-image depth fit refits the full-size images'
+    priors only, so it keeps them throughout, as its paper); other presets have none."""
+    from glint_mi.methods import METHODS
+
+    for m in METHODS:
+        assert config_for(m, "bench").pyramid() == ([] if m == "glint-paper" else [(4, 0.2), (2, 0.4)]), m
+    for preset in ("tiny", "quick", "gpu"):
+        assert config_for("glint", preset).pyramid() == config_for("3dgs", preset).pyramid() == [], preset
+    assert config_for("3dgs", "bench", coarse_to_fine="").pyramid() == []  # --set coarse_to_fine= turns it off

@@ -1352,7 +1352,7 @@ def test_coarse_to_fine_draws_early_patches_from_coarser_images(room, tmp_path, 
         dr.set_thread_count(threads)
     with pytest.raises(ConfigError, match="coarse_to_fine"):
         tiny_cfg(coarse_to_fine="2:0.5,4:0.2")
-    with pytest.raises(ConfigError, match="smaller than a 8 x 8 patch"):
+    with pytest.raises(ConfigError, match="smaller than a 8 x 8 patch.*--set coarse_to_fine="):
         Trainer(tmp_path / "c", tiny_cfg(iterations=4, patch=8, coarse_to_fine="4:0.5"), scene=spec,
                 log=lambda *a: None)
     assert not (tmp_path / "c").exists()

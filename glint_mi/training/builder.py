@@ -49,7 +49,8 @@ def check_patch(cfg, ds) -> None:
         if cfg.patch > min(w, h):
             raise ConfigError(f"'coarse_to_fine' = {cfg.coarse_to_fine!r}: at 1/{f} of the run's size training view "
                               f"'{small.name}' is {w} x {h}, smaller than a {cfg.patch} x {cfg.patch} patch: use a "
-                              f"smaller factor or patch.")
+                              f"smaller factor or patch, or --set coarse_to_fine= (full size throughout; the bench "
+                              f"preset sets it).")
 
 
 def assemble(tr, resume: bool) -> None:
