@@ -155,7 +155,6 @@ def test_config_saved_before_prior_layer_resumes_as_it_was_trained(tmp_path):
     assert config_for("glint-paper", "tiny").prior_layer == config_for("tsgs", "tiny").prior_layer == "interface"
 
 
-
 def test_bench_preset_draws_early_patches_from_coarser_images_for_every_method():
     """The bench preset's coarse-to-fine patches (docs/results/coarse_to_fine) are a way of spending its rays, as its
     epochs are: every method gets them but `glint-paper` (its whole-image depth fit refits the full-size images'
