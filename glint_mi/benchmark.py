@@ -375,16 +375,23 @@ def main(argv=None) -> int:
               f"preset {args.preset}, variant {args.variant}; {where(rows)}."
               + (" Priors derived from ground truth (labelled)." if derived else "") + "\n")
     print(write_results(rows, args.out, header))
-    curves = {}
-    for f in sorted((args.out / "runs").glob("*/*/convergence.csv")):
-        with open(f) as fh:
-            curves[f"{f.parent.name} / {f.parent.parent.name}"] = list(csv.DictReader(fh))
+    curves = convergence_curves(args.out)
     if curves:
         from glint_mi.evaluation.plots import convergence_figure
 
         convergence_figure(curves, args.out / "convergence.png")
         print(f"convergence curves of {len(curves)} run(s): {args.out / 'convergence.png'}")
     return 0
+
+
+def convergence_curves(out: Path, method: str = "*", label: str | None = None) -> dict[str, list[dict]]:
+    """The in-run test curves (``convergence.csv``) of a benchmark folder's runs of ``method`` (a glob), for
+    ``evaluation.plots.convergence_figure``: "METHOD / SCENE" -> rows, or "LABEL / SCENE" with ``label``."""
+    curves = {}
+    for f in sorted((Path(out) / "runs").glob(f"*/{method}/convergence.csv")):
+        with open(f) as fh:
+            curves[f"{label or f.parent.name} / {f.parent.parent.name}"] = list(csv.DictReader(fh))
+    return curves
 
 
 if __name__ == "__main__":

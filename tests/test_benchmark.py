@@ -83,6 +83,9 @@ def test_benchmark_tiny(tmp_path):
         conv = list(csv.DictReader(open(out / "runs" / "scene_000" / method / "convergence.csv")))
         assert [int(c["iteration"]) for c in conv] == [6, 12]
     assert (out / "convergence.png").stat().st_size > 1000
+    from glint_mi.benchmark import convergence_curves
+    assert set(convergence_curves(out)) == {"2dgs / scene_000", "envgs / scene_000"}
+    assert {k: len(v) for k, v in convergence_curves(out, "envgs", "x").items()} == {"x / scene_000": 2}
     bad = subprocess.run(cmd[:-2] + ["--set", "no_such_field=1", "--out", str(tmp_path / "x")], capture_output=True,
                          text=True, cwd=ROOT, timeout=600)
     assert bad.returncode == 2 and "no_such_field" in bad.stderr and not (tmp_path / "x" / "runs").exists()
