@@ -8,6 +8,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -463,6 +464,35 @@ def test_ctrl_c_early_in_evaluate_is_one_line(trained, tmp_path):
         if (run / "metrics.json").read_text() != before:  # it finished first (SIGINT may end the process's exit)
             consistent(run)
         assert not (run / "evaluation_partial").exists() or p.returncode != 0
+
+
+def test_ctrl_c_during_numpys_import_waits_for_its_end():
+    """A Ctrl-C inside NumPy's import (before: 0.05 s into `evaluate` on a loaded CI machine, NumPy's extension turned
+    it into an ImportError 'PyCapsule_Import could not import module "datetime"', printed as two tracebacks). Made
+    certain here: a trace function raises SIGINT when NumPy's Python part of `multiarray` starts. The interrupt must
+    come out as a KeyboardInterrupt after the extension has loaded (held back by glint_mi's import hook), not as an
+    ImportError, and the command's top prints one line."""
+    code = textwrap.dedent("""
+        import signal, sys
+        import glint_mi
+        fired = []
+        def tracer(frame, event, arg):
+            if not fired and event == "call" and frame.f_code.co_filename.endswith("multiarray.py"):
+                fired.append(1)
+                signal.raise_signal(signal.SIGINT)
+            return None
+        sys.settrace(tracer)
+        try:
+            import numpy
+        except KeyboardInterrupt:
+            sys.settrace(None)
+            print("loaded" if "numpy._core._multiarray_umath" in sys.modules else "not loaded", fired)
+            raise
+        print("no interrupt", fired)
+    """)
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert r.stdout.strip() == "loaded [1]", (r.stdout, r.stderr)
+    assert r.returncode == 130 and "Traceback" not in r.stderr and "interrupted" in r.stderr, r.stderr
 
 
 def test_threads_setting_reaches_drjit(xml, tmp_path):
