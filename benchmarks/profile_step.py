@@ -13,6 +13,7 @@ a step spent in BVH traversal (forward + the replay, which re-traces every pass)
     .venv/bin/python benchmarks/profile_step.py --scene SCENE.xml [--at 0.3] [--steps 30]
     .venv/bin/python benchmarks/profile_step.py --run RUN --ab [NAME]   # + the exact speed-ups (NAME: those named so) off vs on
     .venv/bin/python benchmarks/profile_step.py --variant cuda_ad_rgb --run RUN --targets   # + issue 43's GPU targets
+    .venv/bin/python benchmarks/profile_step.py --run RUN --banks       # + coarse_to_fine's banks against the full one
 
 Syncing between phases removes the overlap of Python with running kernels, so the phases add up to a little more
 than an unprofiled step; the table prints both. Results: benchmarks/results/profile_step_<name>.{md,json}.
@@ -176,6 +177,43 @@ def ab(tr: Trainer, steps_per_block: int, blocks: int = 4, only: str = "") -> di
     return {k: statistics.median(v) for k, v in times.items()}
 
 
+def banks(tr: Trainer, steps_per_block: int, blocks: int = 3) -> list[dict]:
+    """``coarse_to_fine``'s cost: the same model and iteration, steps drawing their patches from each bank (the
+    coarse levels and the full-size one) in alternating blocks; median step seconds and, on one batch of each, the
+    hits per ray and the forward's traversal time. The rays a step are the same in every bank; what differs is
+    the images a patch is cut from (a coarse patch spans more of the view: its rays are less coherent)."""
+    pyramid = [f"1/{f}" for f, _ in tr.cfg.pyramid()]
+    named = list(zip(pyramid, (b for _, b in tr.coarse))) + [("full size", tr.bank)]
+    times = {name: [] for name, _ in named}
+    it0, bank_now = tr.it, tr.bank_now
+    try:
+        for _ in range(blocks):
+            for name, bank in named:
+                tr.it = it0
+                tr.bank_now = lambda bank=bank: bank
+                times[name] += steps(tr, steps_per_block, None)[1:]  # the first step of a block pays the switch
+    finally:
+        tr.bank_now, tr.it = bank_now, it0
+    rows = []
+    for name, bank in named:
+        trav = traversal(tr, bank)
+        rows.append(dict(bank=name, step_s=statistics.median(times[name]),
+                         hits_mean=trav[0]["hits_mean"],
+                         forward_ms=sum(r["full_ms"] for r in trav), traversal_ms=sum(r["traversal_ms"] for r in trav)))
+    return rows
+
+
+def banks_markdown(tr: Trainer, rows: list[dict]) -> str:
+    rays = tr.cfg.patches * tr.cfg.patch ** 2
+    full = rows[-1]["step_s"]
+    lines = [f"coarse_to_fine's banks ({tr.cfg.coarse_to_fine}), the same model at iteration {tr.it}, alternating "
+             f"blocks of steps:", "", "| bank | step ms | rays/s | x full size | interface hits / ray | forward ms "
+             "(every pass) | traversal only ms |", "|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['bank']} | {1e3 * r['step_s']:.1f} | {rays / r['step_s']:.0f} | {full / r['step_s']:.2f} | "
+              f"{r['hits_mean']:.1f} | {r['forward_ms']:.1f} | {r['traversal_ms']:.1f} |" for r in rows]
+    return "\n".join(lines + [""])
+
+
 def timed(fn, reps: int = 3) -> float:
     """Median seconds of fn() (after one call that compiles)."""
     fn()
@@ -189,11 +227,12 @@ def timed(fn, reps: int = 3) -> float:
     return statistics.median(out)
 
 
-def traversal(tr: Trainer) -> list[dict]:
-    """Each forward pass of one batch, as it runs and as a traversal only with the same hits per ray."""
+def traversal(tr: Trainer, bank=None) -> list[dict]:
+    """Each forward pass of one batch (from ``bank``, the run's by default), as it runs and as a traversal only with
+    the same hits per ray."""
     integ, c, st = tr.integ, tr.cfg, tr.stage()
     integ.select(st["traced"])
-    b = tr.bank.sample(np.random.default_rng(123), c.patches, c.patch)
+    b = (bank or tr.bank).sample(np.random.default_rng(123), c.patches, c.patch)
     o, d = mi.Point3f(*floats(b.origin)), mi.Vector3f(*floats(b.direction))
     active = mi.Bool(True)
     intf, refl, trans = (integ.active_set(r) for r in ("interface", "reflection", "transmission"))
@@ -354,6 +393,9 @@ def main(argv=None) -> int:
                     help="also time the exact speed-ups without a config switch (those whose name holds NAME, e.g. "
                     "'k-buffer', or several: 'list arrays,Adam'; all without it) off and on, in alternating blocks "
                     "of --steps steps")
+    ap.add_argument("--banks", action="store_true", help="also time steps drawn from each of coarse_to_fine's banks "
+                    "against the full-size one (the run's config must have coarse_to_fine, or give --set "
+                    "coarse_to_fine=4:0.2,2:0.2)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"), help="results folder")
     ap.add_argument("--variant", help="Mitsuba variant (e.g. cuda_ad_rgb; default $GLINT_VARIANT or llvm_ad_rgb)")
     ap.add_argument("--targets", action="store_true", help="also measure issue 43's GPU targets (training rays/s "
@@ -375,6 +417,9 @@ def main(argv=None) -> int:
         tr = Trainer(Path(tmp.name) / "run", cfg, scene=spec, log=quiet)
         tr.it = tr.cfg.at(args.at)
         name = args.name or Path(spec.dataset).name
+    if args.banks and not tr.coarse:
+        ap.error(f"--banks: {name}'s config has no coarse_to_fine ({tr.cfg.coarse_to_fine!r}); add --set "
+                 f"coarse_to_fine=4:0.2,2:0.2")
     t0 = time.perf_counter()
     steps(tr, args.warm, None)
     print(f"{name}: {args.warm} warm-up steps (compiles) in {time.perf_counter() - t0:.1f} s", flush=True)
@@ -387,6 +432,9 @@ def main(argv=None) -> int:
     tr.it = it0
     before_after = ab(tr, args.steps, only=args.ab) if args.ab is not None else None
     text = markdown(name, tr, plain, prof, args.steps, trav, before_after, only=args.ab or "")
+    bank_rows = banks(tr, args.steps) if args.banks else None
+    if bank_rows is not None:
+        text += "\n" + banks_markdown(tr, bank_rows)
     tgt = targets(tr, args.target_rays) if args.targets else None
     if tgt is not None:
         text += "\n" + targets_markdown(tgt)
@@ -398,7 +446,7 @@ def main(argv=None) -> int:
         {"name": name, **{k: v for k, v in describe().items() if k in ("variant", "device", "cpu", "cores")},
          "rays_per_step": tr.cfg.patches * tr.cfg.patch ** 2, "step_s": plain,
          "phases": {k: dict(v) for k, v in prof.rows.items()}, "steps": args.steps, "traversal": trav,
-         "before_after_step_s": before_after, "targets": tgt,
+         "before_after_step_s": before_after, "targets": tgt, "banks": bank_rows,
          "gaussians": {r: len(s) for r, s in tr.sets.items() if r not in tr.dropped}}, indent=1))
     return 0
 

@@ -319,10 +319,11 @@ def test_converge_table_compares_glint_seed_by_seed():
 def test_profile_step_measures_the_gpu_targets(tmp_path):
     """benchmarks/profile_step.py --targets (issue 43's figures; the GPU runs it with --variant cuda_ad_rgb): the
     training rate at a given batch, a 480 x 270 view's render rate and the paper's budget at that rate, in the
-    table and the JSON with the variant that ran them."""
+    table and the JSON with the variant that ran them. With --banks, a row per coarse_to_fine bank (coarsest first)
+    and the full-size one; without coarse_to_fine, --banks is refused before any step."""
     cmd = [sys.executable, str(ROOT / "benchmarks" / "profile_step.py"), "--preset", "tiny", "--steps", "2",
            "--warm", "1", "--targets", "--target-rays", "4096", "--variant", "llvm_ad_rgb", "--name", "t",
-           "--out", str(tmp_path)]
+           "--out", str(tmp_path), "--banks", "--set", "coarse_to_fine=2:0.5"]
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=900)
     assert r.returncode == 0, r.stderr[-3000:]
     res = json.loads((tmp_path / "profile_step_t.json").read_text())
@@ -332,6 +333,11 @@ def test_profile_step_measures_the_gpu_targets(tmp_path):
     assert t["paper_budget_min"] == pytest.approx(60000 * 480 * 270 / t["train_rays_per_s"] / 60)
     assert 0 < t["render_fps_480x270"] < 1e4
     assert "| render, one 480 x 270 view |" in (tmp_path / "profile_step_t.md").read_text()
+    assert [b["bank"] for b in res["banks"]] == ["1/2", "full size"]
+    assert all(b["step_s"] > 0 and b["hits_mean"] > 0 and b["traversal_ms"] > 0 for b in res["banks"])
+    assert "| 1/2 |" in (tmp_path / "profile_step_t.md").read_text()
+    r = subprocess.run(cmd[:-2], capture_output=True, text=True, cwd=ROOT, timeout=900)
+    assert r.returncode == 2 and "coarse_to_fine=" in r.stderr and "Traceback" not in r.stderr, r.stderr[-2000:]
 
 
 def test_render_tradeoff_benchmark_on_a_trained_run(room, tmp_path):
