@@ -49,3 +49,12 @@ if [ -d $G/check98_sfmfloor ]; then
     $PY benchmarks/tuning_rule.py --confirm --rooms 9801,9802,9803,9804 --base $G/check98_nd \
         --switch sfmfloor=$G/check98_sfmfloor --floor priors; } > docs/results/prior_sweep/check98.md
 fi
+# item 3 at the converged budget (forty-second session, converged60.sh): GLINT and the priors at 60 epochs with
+# growth, today's defaults; each room's runs are their own folder (one lane a room); the levels run so far
+C=()
+for l in realistic_e0.5 realistic_e0.75 realistic_e1 realistic_e1.25 realistic_e2.0 realistic-v1_e0.5 realistic-v1_e2.0; do
+  f=""; for s in 7301 7302; do [ -d $G/conv60_${l}_$s ] && f="$f,$G/conv60_${l}_$s"; done
+  [ -n "$f" ] && C+=("$l=${f#,}")
+done
+$PY benchmarks/sweep_table.py --by-room "${C[@]}" --out docs/results/prior_sweep/converged60.md \
+    --floor-plot docs/results/prior_sweep/converged60_floor.png > /dev/null
