@@ -161,43 +161,52 @@ def picked(name: str, only: str) -> bool:
     return any(part in name for part in only.split(","))
 
 
+def alternating(tr: Trainer, variants: list, steps_per_block: int, blocks: int) -> dict:
+    """Median step seconds of each variant ``(name, apply)``: ``apply(tr)`` sets it up, then a block of steps runs from
+    the same iteration of the schedule (the model keeps training); the variants alternate, ``blocks`` rounds."""
+    times = {name: [] for name, _ in variants}
+    it0 = tr.it
+    try:
+        for _ in range(blocks):
+            for name, apply in variants:
+                tr.it = it0
+                apply(tr)
+                times[name] += steps(tr, steps_per_block, None)[1:]  # the first step of a block pays the switch
+    finally:
+        tr.it = it0
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
 def ab(tr: Trainer, steps_per_block: int, blocks: int = 4, only: str = "") -> dict:
     """Median step seconds with the SPEEDUPS (those whose name holds ``only``, or one of its comma-separated parts)
     off ('before') and on ('after'), in alternating blocks, each from the same iteration of the schedule (the stage of
     the profile above; the model keeps training)."""
-    times = {"before": [], "after": []}
-    it0 = tr.it
-    for _ in range(blocks):
-        for variant in ("before", "after"):
-            tr.it = it0
+    def switch(which):
+        def apply(tr):
             for name, off, on in SPEEDUPS:
                 if picked(name, only):
-                    (off if variant == "before" else on)(tr)
-            times[variant] += steps(tr, steps_per_block, None)[1:]  # the first step of a block pays the switch
-    return {k: statistics.median(v) for k, v in times.items()}
+                    (off if which == "before" else on)(tr)
+        return apply
+
+    return alternating(tr, [(v, switch(v)) for v in ("before", "after")], steps_per_block, blocks)
 
 
 def banks(tr: Trainer, steps_per_block: int, blocks: int = 3) -> list[dict]:
     """``coarse_to_fine``'s cost: the same model and iteration, steps drawing their patches from each bank (the
     coarse levels and the full-size one) in alternating blocks; median step seconds and, on one batch of each, the
     hits per ray and the forward's traversal time. The rays a step are the same in every bank; what differs is
-    the images a patch is cut from (a coarse patch spans more of the view: its rays are less coherent)."""
+    the images a patch is cut from (a coarse patch spans more of the view)."""
     pyramid = [f"1/{f}" for f, _ in tr.cfg.pyramid()]
     named = list(zip(pyramid, (b for _, b in tr.coarse))) + [("full size", tr.bank)]
-    times = {name: [] for name, _ in named}
-    it0, bank_now = tr.it, tr.bank_now
     try:
-        for _ in range(blocks):
-            for name, bank in named:
-                tr.it = it0
-                tr.bank_now = lambda bank=bank: bank
-                times[name] += steps(tr, steps_per_block, None)[1:]  # the first step of a block pays the switch
+        times = alternating(tr, [(name, lambda tr, bank=bank: setattr(tr, "bank_now", lambda: bank))
+                                 for name, bank in named], steps_per_block, blocks)
     finally:
-        tr.bank_now, tr.it = bank_now, it0
+        tr.__dict__.pop("bank_now", None)  # the instance's override: Trainer.bank_now again
     rows = []
     for name, bank in named:
         trav = traversal(tr, bank)
-        rows.append(dict(bank=name, step_s=statistics.median(times[name]),
+        rows.append(dict(bank=name, step_s=times[name],
                          hits_mean=trav[0]["hits_mean"],
                          forward_ms=sum(r["full_ms"] for r in trav), traversal_ms=sum(r["traversal_ms"] for r in trav)))
     return rows
@@ -207,7 +216,8 @@ def banks_markdown(tr: Trainer, rows: list[dict]) -> str:
     rays = tr.cfg.patches * tr.cfg.patch ** 2
     full = rows[-1]["step_s"]
     lines = [f"coarse_to_fine's banks ({tr.cfg.coarse_to_fine}), the same model at iteration {tr.it}, alternating "
-             f"blocks of steps:", "", "| bank | step ms | rays/s | x full size | interface hits / ray | forward ms "
+             f"blocks of steps (hits and traversal: one batch each, timed three times, noisier than the steps):", "",
+             "| bank | step ms | rays/s | x full size | interface hits / ray | forward ms "
              "(every pass) | traversal only ms |", "|---|---|---|---|---|---|---|"]
     lines += [f"| {r['bank']} | {1e3 * r['step_s']:.1f} | {rays / r['step_s']:.0f} | {full / r['step_s']:.2f} | "
               f"{r['hits_mean']:.1f} | {r['forward_ms']:.1f} | {r['traversal_ms']:.1f} |" for r in rows]
@@ -406,20 +416,19 @@ def main(argv=None) -> int:
     quiet = lambda *a, **k: None
     tmp = tempfile.TemporaryDirectory()
     overrides = parse_sets(args.set)
+    cfg = (TrainConfig.load(Path(args.run) / "config.json").replace(**overrides) if args.run
+           else TrainConfig.for_preset(args.preset, **overrides))
+    if args.banks and not cfg.pyramid():
+        ap.error(f"--banks: the config has no coarse_to_fine ({cfg.coarse_to_fine!r}); add --set "
+                 f"coarse_to_fine=4:0.2,2:0.2")
     if args.run:
-        cfg = TrainConfig.load(Path(args.run) / "config.json")
-        cfg = cfg.replace(**overrides)
         tr = Trainer(args.run, cfg, resume=True, log=quiet)
         name = args.name or Path(args.run).name
     else:
-        cfg = TrainConfig.for_preset(args.preset, **overrides)
         spec = read_scene(args.scene)
         tr = Trainer(Path(tmp.name) / "run", cfg, scene=spec, log=quiet)
         tr.it = tr.cfg.at(args.at)
         name = args.name or Path(spec.dataset).name
-    if args.banks and not tr.coarse:
-        ap.error(f"--banks: {name}'s config has no coarse_to_fine ({tr.cfg.coarse_to_fine!r}); add --set "
-                 f"coarse_to_fine=4:0.2,2:0.2")
     t0 = time.perf_counter()
     steps(tr, args.warm, None)
     print(f"{name}: {args.warm} warm-up steps (compiles) in {time.perf_counter() - t0:.1f} s", flush=True)

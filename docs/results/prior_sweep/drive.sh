@@ -6,7 +6,7 @@
 # PART: see (item 4, the see-through share; VALUES: which P, default all in the declared order), check98 (DATA: the
 # rooms 9801-9804; the prior schedule checked there, then keep98.sh OUT), errors38 (item 3's remaining levels with
 # the current defaults; VALUES: the error scales), errors (item 3 at
-# the bench budget), converged (item 3 at 120 epochs with growth) or all (default). Two lanes = two calls with
+# the bench budget), converged (item 3 at the converged budget: converged60.sh for each room) or all (default). Two lanes = two calls with
 # different VALUES (each benchmark runs one Dr.Jit thread).
 set -uo pipefail
 DATA=${1:?DATA}; OUT=${2:?OUT}; PY=${3:-.venv/bin/python}; PART=${4:-all}; VALUES=${5:-1.0 0.6 0.2 0.8 0.4}
@@ -17,14 +17,7 @@ for s in $ROOMS; do
   [ -f "$DATA/r$s/scene_$s/meta.json" ] || run $PY -m glint_mi.dataset make "$DATA/r$s" --scenes 1 --seed $s \
       --preset bench --views 48 --spp 256 --renderer cycles
 done
-level() {  # level NAME SEED ARGS...: DATA/levels/NAME/scene_SEED with its own priors
-  local name=$1 s=$2 f; shift 2   # f local: the error part's loop over scales is also f
-  local dst="$DATA/levels/$name/scene_$s" src="$DATA/r$s/scene_$s"
-  [ -f "$dst/priors/PRIORS.json" ] && return
-  mkdir -p "$dst"
-  for f in "$src"/*; do [ "$(basename "$f")" = priors ] || ln -sfn "$f" "$dst/$(basename "$f")"; done
-  run $PY -m glint_mi.dataset priors "$dst" --seed $s "$@"
-}
+source "$(dirname "$0")/levels.sh"  # level NAME SEED ARGS...: DATA/levels/NAME/scene_SEED with its own priors
 B="$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40"
 PP="--set prior_photo=0.75"
 if [ "$PART" = see ] || [ "$PART" = all ]; then  # item 4 and its addenda
@@ -70,13 +63,8 @@ if [ "$PART" = errors ] || [ "$PART" = all ]; then
     done
   done
 fi
-if [ "$PART" = converged ] || [ "$PART" = all ]; then  # 120 epochs with growth until converge_98xx decides
-  for model in realistic realistic-v1; do
-    for f in 0.5 0.75 1 1.25 2.0; do
-      run ${B/epochs=40/epochs=120} --data "$DATA/levels/${model}_e$f" --methods glint --set densify_top=0.12 \
-          --set densify_grad_rel=0.05 --out "$OUT/grow120_${model}_e$f"
-    done
-  done
+if [ "$PART" = converged ] || [ "$PART" = all ]; then  # at GLINT's point in converge_98xx (forty-second session)
+  for s in $ROOMS; do DATA=$DATA RUNS=$OUT PY=$PY bash "$(dirname "$0")/converged60.sh" $s; done  # or one lane each
 fi
 if [ "$PART" = errors38 ]; then  # thirty-eighth session: item 3 with the current defaults (prior_decay_ref 8)
   # VALUES: the realistic model's error scales still missing (0.75 1.25); then realistic-v1 on 7302 at 0.5 and 2.0
