@@ -11,5 +11,6 @@ for s in 9801 9802 9803; do $P --seed-ids 1 --data /work/data98_$s --out /work/r
 $P --data /work/data98_9803 --out /work/runs98/e30_grow
 $G --data /work/data98_9801 --out /work/runs98/e120_grow_s1
 $G --data /work/data98_9802 --out /work/runs98/e120_grow_s1
+while [ ! -f /work/data98/scene_9804/meta.json ]; do sleep 30; done
 $P --data /work/data98_9804 --out /work/runs98/e30_grow
 $P --seed-ids 1 --data /work/data98_9804 --out /work/runs98/e30_grow_s1
