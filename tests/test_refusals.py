@@ -474,6 +474,7 @@ def test_ctrl_c_during_numpys_import_waits_for_its_end():
     ImportError, and the command's top prints one line."""
     code = textwrap.dedent("""
         import signal, sys
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # a shell's background job starts with SIGINT ignored
         import glint_mi
         fired = []
         def tracer(frame, event, arg):
