@@ -1,9 +1,7 @@
 #!/bin/bash
 # lane A, session 40, after tsgs at wide: seed 1 of tsgs at its point (60 epochs, growth) on 9803, then 9804
-cd /work/wt98
-export PYTHONPATH=/work/wt98:/work/wt98_path
-PY=/work/main/.venv/bin/python
-G="--preset bench --set downscale=2 --set w_sfm_depth=0 --set eval_every=1000 --set threads=1 --set epochs=60 --set densify_top=0.12 --set densify_grad_rel=0.05 --seed-ids 1"
+source "$(dirname "$0")/lanes.sh"
+G="$BENCH $GROW --set epochs=60 --seed-ids 1"
 while pgrep -f "s40A2.sh" > /dev/null; do sleep 20; done
-$PY -m glint_mi.benchmark $G --methods tsgs --data /work/data98_9803 --out /work/runs98/e60_grow_s1
-$PY -m glint_mi.benchmark $G --methods tsgs --data /work/data98_9804 --out /work/runs98/e60_grow_s1
+$G --methods tsgs --data /work/data98_9803 --out /work/runs98/e60_grow_s1
+$G --methods tsgs --data /work/data98_9804 --out /work/runs98/e60_grow_s1
