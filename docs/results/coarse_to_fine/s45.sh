@@ -14,10 +14,9 @@ case $lane in
   B) mine=(); tag=preset; pair=${D}_34 ;;
   *) echo "lane '$lane': use A or B" >&2; exit 2 ;;
 esac
+source "$(dirname "$0")/../converge_98xx/flags.sh"  # BENCH, GROW: converge_98xx's converged runs
 cd "$WT"; export PYTHONPATH=$WT:${WT}_path
-PY=${PY:-/work/main/.venv/bin/python}
-B=($PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set eval_every=1000 --set threads=1
-   --set epochs=60 --set densify_top=0.12 --set densify_grad_rel=0.05 --seed-ids 0)
+B=($BENCH --set epochs=60 $GROW --seed-ids 0)
 run() { echo "=== $(date -u +%FT%TZ) $*"; "$@"; echo "=== rc=$? $(date -u +%FT%TZ)"; }
 run "${B[@]}" --methods glint "${mine[@]}" --data "$D" --out "$RUNS/glint_$tag"
 run "${B[@]}" --methods glint --set coarse_to_fine=4:0.0333,2:0.0333 --data "$pair" --out "$RUNS/glint_epochs2"
