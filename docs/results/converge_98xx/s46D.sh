@@ -1,5 +1,5 @@
 #!/bin/bash
-# lane B, session 46 (after s46A.sh and coarse_to_fine/s45.sh B's 3dgs runs): glint at its point (60 epochs, growth)
+# lane B, session 46 (after s46B.sh and coarse_to_fine/s45.sh B's 3dgs runs): glint at its point (60 epochs, growth)
 # with the product's SfM depth term (w_sfm_depth 0.1, the default; flags.sh's BENCH sets 0, the later --set wins),
 # seed 0, 9802 then 9804
 source "$(dirname "$0")/lanes.sh"
