@@ -18,15 +18,20 @@ from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig,
 
 
 def parse_sets(items) -> dict:
+    """``--set FIELD=VALUE`` flags as {FIELD: value}; a field given twice with two values is refused (the later one
+    silently won before), as ``flatten`` refuses a field named twice through its layer's path."""
     out = {}
     for it in items or []:
         if "=" not in it:
             raise ConfigError(f"--set {it!r}: use FIELD=VALUE (a JSON value or a string).")
         k, v = it.split("=", 1)
         try:
-            out[k] = json.loads(v)
+            v = json.loads(v)
         except json.JSONDecodeError:
-            out[k] = v
+            pass
+        if k in out and out[k] != v:
+            raise ConfigError(f"--set: '{k}' is given twice ({out[k]!r} and {v!r}); keep one.")
+        out[k] = v
     return out
 
 

@@ -357,10 +357,11 @@ def test_a_read_only_run_folder_is_named(trained, tmp_path, command):
     (("--seed", "-1"), ("'seed' = -1",)),
     (("--config", "LIST"), ("holds a JSON list, not an object",)),
     (("--set", "patch=2"), ("'patch' = 2: must be >= 3",)),
+    (("--set", "w_trans=0", "--set", "w_trans=0.03"), ("'w_trans' is given twice (0 and 0.03); keep one",)),
 ])
 def test_bad_values_are_refused_before_any_work(xml, tmp_path, args, needles):
-    """--seed -1 (before: a numpy traceback after set-up) and a --config JSON that is a list (before: an
-    AttributeError traceback)."""
+    """--seed -1 (before: a numpy traceback after set-up), a --config JSON that is a list (before: an
+    AttributeError traceback) and one field set twice with two values (before: the later --set won, silently)."""
     if "LIST" in args:
         (tmp_path / "list.json").write_text(json.dumps([{"components": "all"}]))
         args = ("--config", tmp_path / "list.json")

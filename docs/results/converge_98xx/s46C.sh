@@ -1,6 +1,6 @@
 #!/bin/bash
 # lane A, session 46 (after s46A.sh and coarse_to_fine/s45.sh A's 3dgs runs): glint at its point (60 epochs, growth)
-# with the product's SfM depth term (w_sfm_depth 0.1, the default; flags.sh's BENCH sets 0, the later --set wins),
+# with the product's SfM depth term (w_sfm_depth 0.1, the default; flags.sh's BENCH sets 0, and in the declared code the later --set wins; today's refuses a field set twice),
 # seed 0, 9801 then 9803
 source "$(dirname "$0")/lanes.sh"
 for room in 9801 9803; do
