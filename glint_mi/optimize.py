@@ -29,7 +29,7 @@ def parse_sets(items) -> dict:
             v = json.loads(v)
         except json.JSONDecodeError:
             pass
-        if k in out and out[k] != v:
+        if k in out and repr(out[k]) != repr(v):  # repr: 1, 1.0 and true are three values, though equal in Python
             raise ConfigError(f"--set: '{k}' is given twice ({out[k]!r} and {v!r}); keep one.")
         out[k] = v
     return out
