@@ -252,7 +252,10 @@ class DensifyConfig:
     budget."""
 
     densify_from: float = 0.5 / 60
-    densify_until: float = 21 / 60
+    densify_until: float = 21 / 60       # the end of the structure phase: densification, the opacity resets, the
+    #                                      t gate's start and the secondary sets' decisions (components: auto)
+    grow_until: float = -1.0             # densification alone ends here instead (-1: at densify_until): growth
+    #                                      moved apart from the resets, the t gate and the decisions (issue 66)
     densify_every: float = 0.02
     reset_every: float = 3 / 60
     densify_grad_rel: float = 0.12       # floor on a Gaussian's mean |dL/d position| x extent over the interval (the
@@ -430,8 +433,8 @@ class TrainConfig:
         for name, v in self.flat().items():  # weights, learning rates and schedule fractions
             if name.startswith(("w_", "lr_")):
                 need(v >= 0, name, "must be >= 0")
-            if name.endswith(("_from", "_until", "_every")) and isinstance(v, float) or name in (
-                    "warmup", "depth_refit", "prior_decay", "densify_top"):
+            fraction = name.endswith(("_from", "_until", "_every")) and isinstance(v, float)
+            if fraction and name != "grow_until" or name in ("warmup", "depth_refit", "prior_decay", "densify_top"):
                 need(0 <= v <= 1, name, "is a fraction of the run (or of a set), between 0 and 1")
         for name, low in (("max_hits", 1), ("max_gaussians", 1), ("log_every", 1), ("checkpoint_every", 0),
                           ("threads", 0), ("eval_every", 0), ("grid_n", 1), ("grid_k", 1), ("init_min_points", 0),
@@ -518,6 +521,9 @@ class TrainConfig:
                   "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from",
                   "prior_decay"):
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
+        need(self.grow_until == -1 or self.densify_from < self.grow_until <= 1.0, "grow_until",
+             f"is a fraction of the run after densify_from ({self.densify_from:g}) and <= 1, or -1 (densification "
+             f"ends at densify_until)")
 
     def rays_per_iteration(self) -> int:
         return self.patches * self.patch ** 2

@@ -139,6 +139,8 @@ def test_stage_schedule(variant):
     assert stage(at(c.normal_from))["normal"] and stage(at(c.normal_from))["normal_masked"]
     assert not stage(at(c.treg_from) - 1)["treg"] and stage(at(c.treg_from))["treg"]
     assert not stage(at(c.densify_until) - 1)["t_gate"] and stage(at(c.densify_until))["t_gate"]
+    late = SimpleNamespace(**{**vars(fake), "cfg": c.replace(grow_until=0.9)})  # grow_until moves growth alone
+    assert [Trainer.stage(late, at(c.densify_until) + d)["t_gate"] for d in (-1, 0)] == [False, True]
     last = stage(599)
     if variant == "supplement":  # the refine stage freezes the interface
         assert last["name"] == "refine" and "interface" not in last["trained"]
@@ -306,6 +308,7 @@ def test_components_auto_decision_on_the_measured_pair(cover, share, kept):
     at = policy.decide_at()["transmission"]
     roles = ["interface", "transmission", "reflection"]
     assert at == c.at(max(c.densify_until, c.trans_from + 0.1)) and policy.due(at - 1, roles) == []
+    assert ComponentsPolicy(c.replace(grow_until=0.9)).decide_at() == policy.decide_at()  # growth alone moves
     hist = [{"mask_t": cover, "share_transmission": share, "share_reflection": 0.05}] * 60
     for role in policy.due(at, roles):
         keep, why = policy.decide(role, hist, roles)

@@ -1281,6 +1281,20 @@ def test_the_strategy_owns_its_schedule():
     resets = [it + 1 for it in range(1000) if s.due(it)[1]]
     assert dens == [100, 200, 300, 400, 500] and resets == [200, 400]
     assert not s.densifying(49) and s.densifying(50) and s.densifying(499) and not s.densifying(500)
+    # grow_until moves the end of densification alone: the resets (and the t gate, the sets' decisions, which read
+    # densify_until too) stay where they were; -1 is densify_until
+    late = Strategy.for_config(cfg.replace(grow_until=0.8), 1.0, np.random.default_rng(0))
+    assert [it + 1 for it in range(1000) if late.due(it)[0]] == [100, 200, 300, 400, 500, 600, 700, 800]
+    assert [it + 1 for it in range(1000) if late.due(it)[1]] == resets
+    assert late.densifying(799) and not late.densifying(800)
+    early = Strategy.for_config(cfg.replace(grow_until=0.3), 1.0, np.random.default_rng(0))
+    assert [it + 1 for it in range(1000) if early.due(it)[0]] == [100, 200, 300]
+    assert [it + 1 for it in range(1000) if early.due(it)[1]] == resets
+    same = Strategy.for_config(cfg.replace(grow_until=-1), 1.0, np.random.default_rng(0))
+    assert [same.due(it) for it in range(1000)] == [s.due(it) for it in range(1000)]
+    for bad in (0.05, 0.0, 1.5, -0.5):
+        with pytest.raises(ConfigError, match="grow_until"):
+            cfg.replace(grow_until=bad)
 
 
 def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):

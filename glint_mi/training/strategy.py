@@ -56,7 +56,13 @@ class Strategy:
     def densifying(self, it: int) -> bool:
         """Whether iteration ``it``'s gradients feed the densification statistic."""
         c = self.cfg
-        return self.at(c.densify_from) <= it < self.at(c.densify_until)
+        return self.at(c.densify_from) <= it < self.at(self.grow_until())
+
+    def grow_until(self) -> float:
+        """The fraction of the run where densification ends: ``grow_until``, or ``densify_until`` where that is -1
+        (the opacity resets stop at ``densify_until`` either way)."""
+        c = self.cfg
+        return c.densify_until if c.grow_until == -1 else c.grow_until
 
     def due(self, it: int) -> tuple[bool, bool]:
         """(densify, reset): what the structure step after iteration ``it`` does."""
