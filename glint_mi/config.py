@@ -265,6 +265,9 @@ class DensifyConfig:
     #                                      floor had 2e-4; right only at their batch size)
     densify_top: float = 0.05            # ... and only the top fraction of the set by that gradient, per step
     percent_dense: float = 0.01          # clone below this x extent, split above
+    clone_opacity: str = "copy"          # a clone and its parent: "copy" keep the parent's opacity a (3DGS: where
+    #                                      they overlap they cover 1 - (1 - a)^2), "shared" each get 1 - sqrt(1 - a)
+    #                                      so that the pair covers a (Rota Bulo et al. 2024, "Revising Densification")
     prune_opacity: float = 0.005         # 3DGS's; the paper lists 0.08 / 0.05, which after a reset to 0.01 prunes
                                          # most of a set unless thousands of steps separate reset and pruning
     prune_scale: float = 0.1             # prune Gaussians larger than this x extent (after the first reset)
@@ -521,6 +524,8 @@ class TrainConfig:
                   "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from",
                   "prior_decay"):
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
+        need(self.clone_opacity in ("copy", "shared"), "clone_opacity",
+             "use copy (a clone keeps its parent's opacity, 3DGS) or shared (the pair covers what the parent did)")
         need(self.grow_until == -1 or self.densify_from < self.grow_until <= 1.0, "grow_until",
              f"is a fraction of the run after densify_from ({self.densify_from:g}) and <= 1, or -1 (densification "
              f"ends at densify_until)")

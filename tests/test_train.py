@@ -196,6 +196,39 @@ def test_densify_prune_keeps_set_adam_and_stats_aligned(rng):
     assert len(strat.grad_sum["interface"]) == len(new)
 
 
+@pytest.mark.parametrize("mode", ["copy", "shared"])
+def test_a_clone_and_its_parent_share_its_coverage_when_asked(rng, mode):
+    """clone_opacity: "copy" (3DGS) gives the clone its parent's opacity a, so that the pair covers 1 - (1 - a)^2
+    where they overlap; "shared" gives both 1 - sqrt(1 - a), so that the pair covers a. Split children and the
+    Gaussians left alone keep their opacity either way."""
+    cfg = tiny_cfg(densify_top=0.5, densify_grad=0.0, prune_opacity=0.005, max_gaussians=100, clone_opacity=mode)
+    n = 8
+    op = np.linspace(0.05, 0.995, n)
+    scales = np.where((np.arange(n) % 2 == 0)[:, None], 0.001, 0.5) * np.ones((n, 3))  # even rows clone, odd split
+    g = GaussianSet.from_activated(rng.normal(size=(n, 3)), scales, opacities=op)
+    g.logit_specular[:] = np.arange(n)  # a row tag
+    adam = Adam({"means": 1, "log_scales": 1, "quats_wxyz": 1, "logit_opacity": 1, "sh": 1, "sh_rest": 1,
+                 "logit_specular": 1, "logit_transparency": 1})
+    adam._state("interface", g)
+    strat = Strategy.for_config(cfg, extent=1.0, rng=np.random.default_rng(0))
+    grad = np.zeros((n, 3))
+    grad[:, 0] = np.arange(n) % 4 >= 2  # rows 2, 3, 6, 7 densify: 2 and 6 clone, 3 and 7 split
+    strat.accumulate("interface", n, grad, np.ones(n))
+    new = strat.densify_and_prune(1, "interface", g, adam, prune_large=False)
+    tags, a = new.logit_specular.astype(int), new.activated()["opacity"]
+    assert (strat.events[-1].cloned, strat.events[-1].split) == (2, 2)
+    for row in range(n):
+        got = a[tags == row]
+        if row in (2, 6):  # the parent and its clone
+            assert len(got) == 2 and got[0] == got[1]
+            covers = 1 - (1 - got[0]) ** 2
+            assert covers == pytest.approx(op[row] if mode == "shared" else 1 - (1 - op[row]) ** 2, abs=1e-6)
+        else:  # untouched rows, and the two children of a split parent
+            assert len(got) == (2 if row in (3, 7) else 1) and np.allclose(got, op[row], atol=1e-6)
+    with pytest.raises(ConfigError, match="clone_opacity"):
+        tiny_cfg(clone_opacity="half")
+
+
 def test_patch_losses():
     p, P = 4, 3
     x = mi.Color3f(*[mi.Float(np.random.default_rng(k).uniform(0, 1, P * p * p)) for k in range(3)])

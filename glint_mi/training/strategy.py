@@ -169,6 +169,9 @@ class Strategy:
             drop |= smax > cfg.prune_scale * self.extent
         drop[split] = True
         keep = np.flatnonzero(~drop)
+        if cfg.clone_opacity == "shared" and len(clone):  # a clone and its parent share the parent's coverage
+            gset.logit_opacity[clone] = cv.logit(1.0 - np.sqrt(1.0 - a["opacity"][clone])).astype(
+                gset.logit_opacity.dtype)
         parts = [gset.subset(keep), gset.subset(clone)] + children
         index = np.concatenate([keep, clone, np.full(2 * len(split), -1)])
         if len(index) == 0:  # never leave a set empty: keep its most opaque Gaussian
