@@ -166,3 +166,20 @@ def test_bench_preset_draws_early_patches_from_coarser_images_for_every_method()
     for preset in ("tiny", "quick", "gpu"):
         assert config_for("glint", preset).pyramid() == config_for("3dgs", preset).pyramid() == [], preset
     assert config_for("3dgs", "bench", coarse_to_fine="").pyramid() == []  # --set coarse_to_fine= turns it off
+
+
+def test_only_glint_shares_a_clones_coverage_and_only_at_the_bench_preset():
+    """clone_opacity: shared (docs/results/coarse_to_fine, forty-seventh session) is GLINT's at the bench preset, where
+    it was decided; every baseline and glint-paper keep 3DGS's copy there (a baseline is what its paper is), and the
+    other presets keep copy for every method."""
+    from glint_mi.methods import METHODS
+
+    for m in METHODS:
+        ours = m == "glint" or (m.startswith("glint-") and m != "glint-paper")
+        assert config_for(m, "bench").clone_opacity == ("shared" if ours else "copy"), m
+        for preset in ("tiny", "quick", "gpu"):
+            assert config_for(m, preset).clone_opacity == "copy", (m, preset)
+    from glint_mi.training.components import ComponentsPolicy
+
+    # GLINT without a glass cue trains as the 3dgs method (no_glass: 3dgs): with 3DGS's clones too
+    assert ComponentsPolicy(config_for("glint", "bench")).no_glass_profile()["clone_opacity"] == "copy"
