@@ -214,7 +214,9 @@ def test_a_clone_and_its_parent_share_its_coverage_when_asked(rng, mode):
     grad = np.zeros((n, 3))
     grad[:, 0] = np.arange(n) % 4 >= 2  # rows 2, 3, 6, 7 densify: 2 and 6 clone, 3 and 7 split
     strat.accumulate("interface", n, grad, np.ones(n))
+    before = g.logit_opacity.copy()
     new = strat.densify_and_prune(1, "interface", g, adam, prune_large=False)
+    assert np.array_equal(g.logit_opacity, before)  # the set it replaces is left as it was
     tags, a = new.logit_specular.astype(int), new.activated()["opacity"]
     assert (strat.events[-1].cloned, strat.events[-1].split) == (2, 2)
     for row in range(n):
@@ -225,6 +227,25 @@ def test_a_clone_and_its_parent_share_its_coverage_when_asked(rng, mode):
             assert covers == pytest.approx(op[row] if mode == "shared" else 1 - (1 - op[row]) ** 2, abs=1e-6)
         else:  # untouched rows, and the two children of a split parent
             assert len(got) == (2 if row in (3, 7) else 1) and np.allclose(got, op[row], atol=1e-6)
+    # a clone whose parent is pruned as too large (percent_dense above prune_scale: even rows) keeps the parent's
+    # coverage alone; the kept parents (3, 7) share theirs as above
+    big = tiny_cfg(densify_top=0.5, densify_grad=0.0, prune_opacity=0.005, max_gaussians=100, clone_opacity=mode,
+                   percent_dense=1.0, prune_scale=0.1)
+    sizes = np.where((np.arange(n) % 2 == 0)[:, None], 0.5, 0.05) * np.ones((n, 3))
+    g2 = GaussianSet.from_activated(rng.normal(size=(n, 3)), sizes, opacities=op)
+    g2.logit_specular[:] = np.arange(n)
+    adam._state("interface", g2)
+    s2 = Strategy.for_config(big, extent=1.0, rng=np.random.default_rng(0))
+    s2.accumulate("interface", n, grad, np.ones(n))
+    new2 = s2.densify_and_prune(1, "interface", g2, adam, prune_large=True)
+    tags2, a2 = new2.logit_specular.astype(int), new2.activated()["opacity"]
+    assert (s2.events[-1].cloned, s2.events[-1].split) == (4, 0) and sorted(tags2) == [1, 2, 3, 3, 5, 6, 7, 7]
+    for row in (1, 2, 5, 6):  # untouched, or a clone whose parent is gone
+        assert a2[tags2 == row] == pytest.approx(op[row], abs=1e-6)
+    for row in (3, 7):
+        got = a2[tags2 == row]
+        want = op[row] if mode == "shared" else 1 - (1 - op[row]) ** 2
+        assert len(got) == 2 and 1 - (1 - got[0]) ** 2 == pytest.approx(want, abs=1e-6)
     with pytest.raises(ConfigError, match="clone_opacity"):
         tiny_cfg(clone_opacity="half")
 

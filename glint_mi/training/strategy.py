@@ -169,10 +169,13 @@ class Strategy:
             drop |= smax > cfg.prune_scale * self.extent
         drop[split] = True
         keep = np.flatnonzero(~drop)
-        if cfg.clone_opacity == "shared" and len(clone):  # a clone and its parent share the parent's coverage
-            gset.logit_opacity[clone] = cv.logit(1.0 - np.sqrt(1.0 - a["opacity"][clone])).astype(
-                gset.logit_opacity.dtype)
         parts = [gset.subset(keep), gset.subset(clone)] + children
+        if cfg.clone_opacity == "shared" and len(clone):  # a clone and its kept parent share the parent's coverage
+            at = np.searchsorted(keep, clone)
+            kept = keep[np.minimum(at, max(len(keep) - 1, 0))] == clone if len(keep) else np.zeros(len(clone), bool)
+            shared = cv.logit(1.0 - np.sqrt(1.0 - a["opacity"][clone][kept])).astype(gset.logit_opacity.dtype)
+            parts[0].logit_opacity[at[kept]] = shared  # (a parent pruned as too large leaves its clone its opacity)
+            parts[1].logit_opacity[kept] = shared
         index = np.concatenate([keep, clone, np.full(2 * len(split), -1)])
         if len(index) == 0:  # never leave a set empty: keep its most opaque Gaussian
             best = np.array([int(np.argmax(a["opacity"]))])
