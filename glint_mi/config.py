@@ -268,6 +268,10 @@ class DensifyConfig:
     clone_opacity: str = "copy"          # a clone and its parent: "copy" keep the parent's opacity a (3DGS: where
     #                                      they overlap they cover 1 - (1 - a)^2), "shared" each get 1 - sqrt(1 - a)
     #                                      so that the pair covers a (Rota Bulo et al. 2024, "Revising Densification")
+    split_mode: str = "sample"           # a split: "sample" (3DGS) two children drawn from the parent, scales / 1.6;
+    #                                      "axis" two children at +-(sqrt(3)/2) s along the parent's largest axis,
+    #                                      that scale halved, the rest and the opacity kept: the pair's mean,
+    #                                      covariance and integrated opacity are the parent's (its footprint kept)
     prune_opacity: float = 0.005         # 3DGS's; the paper lists 0.08 / 0.05, which after a reset to 0.01 prunes
                                          # most of a set unless thousands of steps separate reset and pruning
     prune_scale: float = 0.1             # prune Gaussians larger than this x extent (after the first reset)
@@ -526,6 +530,9 @@ class TrainConfig:
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
         need(self.clone_opacity in ("copy", "shared"), "clone_opacity",
              "use copy (a clone keeps its parent's opacity, 3DGS) or shared (the pair covers what the parent did)")
+        need(self.split_mode in ("sample", "axis"), "split_mode",
+             "use sample (children drawn from the parent, 3DGS) or axis (two children along its largest axis that "
+             "keep its mean, covariance and integrated opacity)")
         need(self.grow_until == -1 or self.densify_from < self.grow_until <= 1.0, "grow_until",
              f"is a fraction of the run after densify_from ({self.densify_from:g}) and <= 1, or -1 (densification "
              f"ends at densify_until)")

@@ -15,8 +15,9 @@ NO_GLASS = dict(w_trans=0.0, w_treg=0.0, w_plausibility=0.0, w_direct=0.0)
 PLAIN_PHOTO = dict(w_l1=0.8, w_dssim=0.2)  # 3DGS / 2DGS weights
 ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no specular, no transparency attribute
 # glint_mi's SfM depth term, its near-to-far weight of the consistency, its falling normal prior and the bench
-# preset's clones that share their parent's coverage are no baseline's (3DGS's clone copies the opacity)
-NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform", prior_decay=1.0, clone_opacity="copy")
+# preset's clones that share their parent's coverage are no baseline's (3DGS's clone copies the opacity, its split
+# draws the children from the parent)
+NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform", prior_decay=1.0, clone_opacity="copy", split_mode="sample")
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
 _GLINT = LossConfig()  # GLINT's defaults, read here so that the parity rows cannot drift from them
 GLINT_PHOTO = dict(w_l1=_GLINT.w_l1, w_dssim=_GLINT.w_dssim)  # GLINT's photometric weights
@@ -30,7 +31,7 @@ WITH_PRIORS = dict(priors="all", **GLINT_PHOTO, **{k: getattr(_GLINT, k) for k i
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
              trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage
-             clone_opacity="copy",  # 3DGS's densification, as the paper's
+             clone_opacity="copy", split_mode="sample",  # 3DGS's densification, as the paper's
              prior_decay=1.0,  # the paper's prior weights are constant
              coarse_to_fine="",  # full-size images (as the paper): its whole-image depth fit refits those only
              prior_layer="interface",  # the priors supervise the interface everywhere

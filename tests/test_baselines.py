@@ -171,7 +171,7 @@ def test_bench_preset_draws_early_patches_from_coarser_images_for_every_method()
 def test_only_glint_shares_a_clones_coverage_and_only_at_the_bench_preset():
     """clone_opacity: shared (docs/results/coarse_to_fine, forty-seventh session) is GLINT's at the bench preset, where
     it was decided; every baseline and glint-paper keep 3DGS's copy there (a baseline is what its paper is), and the
-    other presets keep copy for every method."""
+    other presets keep copy for every method; every baseline names 3DGS's split."""
     from glint_mi.methods import METHODS
 
     for m in METHODS:
@@ -183,3 +183,10 @@ def test_only_glint_shares_a_clones_coverage_and_only_at_the_bench_preset():
 
     # GLINT without a glass cue trains as the 3dgs method (no_glass: 3dgs): with 3DGS's clones too
     assert ComponentsPolicy(config_for("glint", "bench")).no_glass_profile()["clone_opacity"] == "copy"
+    # and 3DGS's split (children drawn from the parent), which every baseline names, whatever a preset gives GLINT
+    from glint_mi.config import flatten
+
+    for m, spec in METHODS.items():
+        if not (m == "glint" or (m.startswith("glint-") and m != "glint-paper")):
+            assert flatten(spec.overrides).get("split_mode") == "sample", m
+    assert ComponentsPolicy(config_for("glint", "bench")).no_glass_profile()["split_mode"] == "sample"

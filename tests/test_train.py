@@ -250,6 +250,58 @@ def test_a_clone_and_its_parent_share_its_coverage_when_asked(rng, mode):
         tiny_cfg(clone_opacity="half")
 
 
+@pytest.mark.parametrize("kernel", ["surfel", "ellipsoid"])
+def test_an_axis_split_keeps_its_parents_mean_covariance_and_opacity(rng, kernel):
+    """split_mode: "axis" puts two children along the parent's largest axis (a surfel's largest in-plane axis) so
+    that the pair's mixture has the parent's mean and covariance, and each child its opacity and half its
+    integrated opacity; "sample" (3DGS) draws them from the parent with scales / 1.6."""
+    from glint_mi.training.strategy import _rotation_matrices
+    n = 6
+    scales = rng.uniform(0.2, 0.6, size=(n, 3))
+    if kernel == "surfel":
+        scales[:, 2] = 1.0  # a surfel's third scale is not an extent in its plane: never the split axis
+    quats = rng.normal(size=(n, 4))
+    g = GaussianSet.from_activated(rng.normal(size=(n, 3)), scales, quats_xyzw=quats / np.linalg.norm(quats, axis=1, keepdims=True),
+                                   opacities=np.linspace(0.1, 0.9, n))
+    g.logit_specular[:] = np.arange(n)
+    a = g.activated()
+    rot = _rotation_matrices(a["quats_xyzw"])
+    plane = a["scales"].copy()
+    if kernel == "surfel":
+        plane[:, 2] = 0.0
+    for mode in ("axis", "sample"):
+        cfg = tiny_cfg(densify_top=1.0, densify_grad=0.0, prune_opacity=0.005, max_gaussians=100, split_mode=mode,
+                       percent_dense=0.01)
+        adam = Adam({"means": 1, "log_scales": 1, "quats_wxyz": 1, "logit_opacity": 1, "sh": 1, "sh_rest": 1,
+                     "logit_specular": 1, "logit_transparency": 1})
+        adam._state("interface", g)
+        strat = Strategy(cfg.densify, extent=1.0, rng=np.random.default_rng(0), kernel=kernel)
+        strat.accumulate("interface", n, np.ones((n, 3)), np.ones(n))
+        new = strat.densify_and_prune(1, "interface", g, adam, prune_large=False)
+        assert strat.events[-1].split == n and len(new) == 2 * n
+        b, tags = new.activated(), new.logit_specular.astype(int)
+        for row in range(n):
+            kids = np.flatnonzero(tags == row)
+            assert len(kids) == 2
+            assert np.allclose(b["opacity"][kids], a["opacity"][row], atol=1e-6)
+            if mode == "sample":
+                assert np.allclose(b["scales"][kids], a["scales"][row] / 1.6, rtol=1e-5)
+                continue
+            k = int(np.argmax(plane[row]))
+            assert kernel == "ellipsoid" or k < 2
+            mean = b["means"][kids].mean(0)
+            cov = sum(rot[row] @ np.diag(b["scales"][c] ** 2) @ rot[row].T + np.outer(b["means"][c] - mean,
+                                                                                      b["means"][c] - mean)
+                      for c in kids) / 2
+            want = rot[row] @ np.diag(a["scales"][row] ** 2) @ rot[row].T
+            assert np.allclose(mean, a["means"][row], atol=1e-5)
+            assert np.allclose(cov, want, atol=1e-5)
+            ratio = b["scales"][kids] / a["scales"][row]
+            assert np.allclose(ratio[:, k], 0.5, rtol=1e-5) and np.allclose(np.delete(ratio, k, 1), 1.0, rtol=1e-5)
+    with pytest.raises(ConfigError, match="split_mode"):
+        tiny_cfg(split_mode="four")
+
+
 def test_patch_losses():
     p, P = 4, 3
     x = mi.Color3f(*[mi.Float(np.random.default_rng(k).uniform(0, 1, P * p * p)) for k in range(3)])

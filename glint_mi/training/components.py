@@ -72,7 +72,8 @@ class ComponentsPolicy:
         m = flatten(METHODS["3dgs"].overrides)
         # blend: with both extra sets gone GLINT's Fresnel weights give everything to the diffuse term, the same
         # image as plain alpha compositing up to float rounding; the 3dgs blend makes it bit for bit the 3dgs method
-        fields = ("kernel", "blend", "w_l1", "w_dssim", "w_consistency", "normal_weight", "clone_opacity") + (
+        fields = ("kernel", "blend", "w_l1", "w_dssim", "w_consistency", "normal_weight", "clone_opacity",
+                  "split_mode") + (
             ("w_sfm_depth",) if c.no_glass == "3dgs" else ())
         return {k: m[k] for k in fields}
 

@@ -151,18 +151,7 @@ class Strategy:
             cand = cand[np.argsort(-g[cand])[:room]]
         small = smax[cand] <= cfg.percent_dense * self.extent
         clone, split = cand[small], cand[~small]
-        # split: two children sampled from the parent, scales / 1.6 (3DGS); the parent is removed
-        rot = _rotation_matrices(a["quats_xyzw"][split])
-        sc = a["scales"][split].copy()
-        if self.kernel == "surfel":
-            sc[:, 2] = 0.0
-        children = []
-        for _ in range(2):
-            local = self.rng.normal(size=(len(split), 3)) * sc
-            child = gset.subset(split)
-            child.means = a["means"][split] + np.einsum("nij,nj->ni", rot, local)
-            child.log_scales = gset.log_scales[split] - np.log(1.6)
-            children.append(child)
+        children = self._split_children(gset, a, split)  # the parent is removed below
         # prune: low opacity, too large (after the first reset), and split parents
         drop = ~alive
         if prune_large:
@@ -183,6 +172,37 @@ class Strategy:
         new = GaussianSet.concatenate(parts)
         self.events.append(Event(it, role, len(clone), len(split), int(drop.sum()) - len(split), len(new)))
         return self.apply(role, gset, index, new, adam)
+
+    def _split_children(self, gset: GaussianSet, a: dict, split: np.ndarray) -> list[GaussianSet]:
+        """The two children of each split parent (``split_mode``). ``sample`` (3DGS): drawn from the parent's
+        Gaussian (a surfel's in its plane), scales / 1.6, opacity kept. ``axis``: at mean +- (sqrt(3)/2) s e, with s
+        the parent's largest scale (a surfel's largest in-plane one) and e that axis, whose scale is halved; the
+        other scales and the opacity are kept. The pair's mixture then has the parent's mean and covariance (s^2 / 4
+        + 3 s^2 / 4 = s^2 along e) and, where the opacities add (low opacity), its integrated opacity (two halves)."""
+        rot = _rotation_matrices(a["quats_xyzw"][split])
+        sc = a["scales"][split].copy()
+        if self.kernel == "surfel":
+            sc[:, 2] = 0.0
+        children = []
+        if self.cfg.split_mode == "axis":
+            rows = np.arange(len(split))
+            k = np.argmax(sc, axis=1)  # a surfel's normal scale is 0 here: its largest in-plane axis
+            offset = (np.sqrt(3.0) / 2.0) * sc[rows, k][:, None] * rot[rows, :, k]
+            log_scales = gset.log_scales[split].copy()
+            log_scales[rows, k] -= np.log(2.0)
+            for sign in (1.0, -1.0):
+                child = gset.subset(split)
+                child.means = (a["means"][split] + sign * offset).astype(gset.means.dtype)
+                child.log_scales = log_scales.copy()
+                children.append(child)
+            return children
+        for _ in range(2):
+            local = self.rng.normal(size=(len(split), 3)) * sc
+            child = gset.subset(split)
+            child.means = a["means"][split] + np.einsum("nij,nj->ni", rot, local)
+            child.log_scales = gset.log_scales[split] - np.log(1.6)
+            children.append(child)
+        return children
 
     def reset(self, it: int, role: str, gset: GaussianSet, adam, fields=("logit_opacity", "logit_transparency")):
         """Opacity and transparency reset to <= 0.01 (the logits are clamped; the moments restart)."""
