@@ -261,8 +261,8 @@ def test_an_axis_split_keeps_its_parents_mean_covariance_and_opacity(rng, kernel
     if kernel == "surfel":
         scales[:, 2] = 1.0  # a surfel's third scale is not an extent in its plane: never the split axis
     quats = rng.normal(size=(n, 4))
-    g = GaussianSet.from_activated(rng.normal(size=(n, 3)), scales, quats_xyzw=quats / np.linalg.norm(quats, axis=1, keepdims=True),
-                                   opacities=np.linspace(0.1, 0.9, n))
+    quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+    g = GaussianSet.from_activated(rng.normal(size=(n, 3)), scales, quats_xyzw=quats, opacities=np.linspace(0.1, 0.9, n))
     g.logit_specular[:] = np.arange(n)
     a = g.activated()
     rot = _rotation_matrices(a["quats_xyzw"])
