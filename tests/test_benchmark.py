@@ -708,3 +708,24 @@ def test_sweep_table_labels_levels_and_folders(tmp_path):
     del data["1.0"]["priors"]  # every folder given with a suffix: the reference is its copy
     assert sweep_table.floor_plot(data, tmp_path / "floor.png")["normal_mae"]["glint"] == [(20.0, 18.0)]
     assert (tmp_path / "floor.png").stat().st_size > 10_000
+
+
+def test_densify_bump_reads_the_loss_around_densify_steps_and_leaves_resets_out(tmp_path):
+    """benchmarks/densify_bump.py: the mean loss of the window after each densify step against the window up to it;
+    a step next to an opacity reset is left out."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from densify_bump import densify_rises, main
+
+    loss = np.full(60, 1.0)
+    loss[10:20] = 1.5  # after the step at iteration 9 (iterations 10..19)
+    loss[40:50] = 3.0  # after the step at 39, which sits next to a reset at 41
+    with open(tmp_path / "log.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["iteration", "total"])
+        w.writerows([i, loss[i]] for i in range(60))
+    events = [{"iteration": 9, "what": "densify"}, {"iteration": 39, "what": "densify"},
+              {"iteration": 41, "what": "reset"}]
+    (tmp_path / "report.json").write_text(json.dumps({"events": events}))
+    assert densify_rises(tmp_path, window=10) == [(9, 1.0, 1.5)]
+    assert main([str(tmp_path)]) == 0
+    assert main([str(tmp_path / "missing")]) == 2

@@ -160,10 +160,9 @@ class Strategy:
         keep = np.flatnonzero(~drop)
         parts = [gset.subset(keep), gset.subset(clone)] + children
         if cfg.clone_opacity == "shared" and len(clone):  # a clone and its kept parent share the parent's coverage
-            at = np.searchsorted(keep, clone)
-            kept = keep[np.minimum(at, max(len(keep) - 1, 0))] == clone if len(keep) else np.zeros(len(clone), bool)
-            shared = cv.logit(1.0 - np.sqrt(1.0 - a["opacity"][clone][kept])).astype(gset.logit_opacity.dtype)
-            parts[0].logit_opacity[at[kept]] = shared  # (a parent pruned as too large leaves its clone its opacity)
+            kept = np.isin(clone, keep)  # a parent pruned as too large leaves its clone its opacity
+            shared = cv.logit(1.0 - np.sqrt(1.0 - a["opacity"][clone[kept]])).astype(gset.logit_opacity.dtype)
+            parts[0].logit_opacity[np.searchsorted(keep, clone[kept])] = shared  # keep is sorted: the parents' rows
             parts[1].logit_opacity[kept] = shared
         index = np.concatenate([keep, clone, np.full(2 * len(split), -1)])
         if len(index) == 0:  # never leave a set empty: keep its most opaque Gaussian
