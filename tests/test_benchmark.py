@@ -729,3 +729,27 @@ def test_densify_bump_reads_the_loss_around_densify_steps_and_leaves_resets_out(
     assert densify_rises(tmp_path, window=10) == [(9, 1.0, 1.5)]
     assert main([str(tmp_path)]) == 0
     assert main([str(tmp_path / "missing")]) == 2
+
+
+def test_step_rate_reads_a_runs_own_step_times_from_its_log(tmp_path):
+    """benchmarks/step_rate.py: the median rays/s over an iteration range, the steps' seconds summed (rays a step
+    from config.json over rays_per_s), the loss at the last iteration; a run without its files is refused."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from step_rate import main, read_rates, summary
+
+    (tmp_path / "config.json").write_text(json.dumps({"schedule": {"patches": 4, "patch": 5}}))
+    with open(tmp_path / "log.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["iteration", "total", "rays_per_s"])
+        w.writerows([i, 1.0 / (i + 1), 100.0 if i < 5 else 50.0] for i in range(10))  # 1 s, then 2 s a step
+    rates = read_rates(tmp_path)
+    assert rates[0] == (100.0, 1.0, 100)
+    s = summary(rates, 3, 9, split=5)
+    assert s["median_rays_per_s"] == 50.0  # iterations 3..9: two at 100, five at 50
+    assert s["step_s"] == 5 * 1.0 + 5 * 2.0 and s["step_s_split"] == 5 * 2.0
+    assert s["loss"] == 0.1
+    with pytest.raises(ValueError, match="no logged iteration"):
+        summary(rates, 20, 30)
+    assert main([str(tmp_path), "--from", "3", "--split", "5"]) == 0
+    assert main([str(tmp_path)]) == 2  # --from 300 past the last iteration (9): refused, not an empty median
+    assert main([str(tmp_path / "missing")]) == 2
