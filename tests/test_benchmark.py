@@ -451,6 +451,19 @@ def test_glass_pixels_splits_the_glass_by_the_runs_transparency(room, tmp_path):
     off = glass_pixels.run_pixels(tmp_path / "run", off_glass=True)  # the rest of the valid pixels, each once
     n_valid = sum(int((v.load_gt()["depth"] > 0).sum()) for v in tr.eval_views())
     assert all(len(a) == n_valid - n_glass for a in off.values()) and n_valid > n_glass
+    # --reflection: k_s solved from the saved buffers; the image model holds in them (a small residual)
+    ref = glass_pixels.reflection_share(tmp_path / "run")
+    assert ref["glass"]["pixels"] == n_glass and ref["off"]["pixels"] == n_valid - n_glass
+    for x in ref.values():
+        assert x["residual"] < 0.05 and -0.05 <= x["median"] <= 1.05 and 0 <= x["over_0.1"] <= 1, ref
+    assert "| run/run | off the glass (" in glass_pixels.reflection_table([("run/run", ref)])
+    rng = np.random.default_rng(0)  # solve_ks on synthetic pixels: the k_s that made them, NaN where c_R = base
+    c_i, c_r, c_t = (rng.uniform(0, 1, (5, 3)) for _ in range(3))
+    t, ks = rng.uniform(0, 1, 5), np.array([0.0, 0.04, 0.3, 0.9, 0.5])
+    base = (1 - t[:, None]) * c_i + t[:, None] * c_t
+    c_r[4] = base[4]
+    got, res = glass_pixels.solve_ks((1 - ks[:, None]) * base + ks[:, None] * c_r, c_i, c_r, c_t, t)
+    assert np.allclose(got[:4], ks[:4], atol=1e-9) and np.isnan(got[4]) and np.abs(res[:4]).max() < 1e-9
     import contact_sheet  # benchmarks/contact_sheet.py on the same evaluated run: one row per test view
 
     sheet = contact_sheet.contact_sheet(tmp_path / "run", tmp_path / "sheet.png")
