@@ -55,27 +55,40 @@ def glass_split(pixels: dict) -> dict:
     return out
 
 
+def run_dataset(run: Path):
+    """The dataset a finished run was trained on, as its config reads it (evaluation size)."""
+    from glint_mi.config import TrainConfig
+    from glint_mi.runs import load_run_dataset
+
+    cfg = TrainConfig.load(run / "config.json")
+    return load_run_dataset(run, cfg, full=cfg.eval_full)
+
+
+def saved_view(run: Path, view) -> tuple[dict, dict]:
+    """A test view's saved render buffers (what ``python -m glint_mi.evaluate`` wrote in ``RUN/renders/<view>.exr``)
+    and its ground truth; refused, naming the fix, when either is missing."""
+    from glint_mi.data.exr import read_gt_exr
+    from glint_mi.runs import RunError
+
+    exr = run / "renders" / f"{view.name}.exr"
+    if not exr.exists():
+        raise RunError(f"{exr}: missing; evaluate the run first (python -m glint_mi.evaluate {run})")
+    gt = view.load_gt()
+    if gt is None:
+        raise RunError(f"{view.gt_path or view.name}: no ground truth; glass pixels need a generated dataset")
+    return read_gt_exr(exr), gt
+
+
 def run_pixels(run: Path, off_glass: bool = False) -> dict:
     """The glass pixels (``off_glass``: the valid pixels that are not glass) of a finished run's test views (its
     saved renders), concatenated."""
     from glint_mi.training.batch import RayBank
-    from glint_mi.config import TrainConfig
-    from glint_mi.data.exr import read_gt_exr
-    from glint_mi.runs import RunError, load_run_dataset
 
-    cfg = TrainConfig.load(run / "config.json")
-    ds = load_run_dataset(run, cfg, full=cfg.eval_full)
-    views = ds.test_views
-    bank = RayBank(views, ds.root)
+    ds = run_dataset(run)
+    bank = RayBank(ds.test_views, ds.root)
     acc = {k: [] for k in ("normal", "prior", "gt_normal", "depth", "gt_depth", "t")}
-    for i, v in enumerate(views):
-        exr = run / "renders" / f"{v.name}.exr"
-        if not exr.exists():
-            raise RunError(f"{exr}: missing; evaluate the run first (python -m glint_mi.evaluate {run})")
-        gt = v.load_gt()
-        if gt is None:
-            raise RunError(f"{v.gt_path or v.name}: no ground truth; glass pixels need a generated dataset")
-        ch = read_gt_exr(exr)
+    for i, v in enumerate(ds.test_views):
+        ch, gt = saved_view(run, v)
         g = ((gt["glass"] <= 0.5) if off_glass else (gt["glass"] > 0.5)) & (gt["depth"] > 0)
         prior = bank.prior_normals_world(i)
         acc["normal"].append(np.stack([ch["N.X"], ch["N.Y"], ch["N.Z"]], -1)[g])
@@ -101,24 +114,15 @@ def reflection_share(run: Path) -> dict:
     """On the glass and off it (valid ground truth), over a finished run's test views: k_s's mean, median and share
     over 0.1 (pixels where it can be told), the share of the energy (sum of the mean channel) that k_s c_R carries,
     and the fit's residual RMS against the pixels' RMS."""
-    from glint_mi.config import TrainConfig
-    from glint_mi.data.exr import read_gt_exr
-    from glint_mi.runs import RunError, load_run_dataset
+    from glint_mi.runs import RunError
 
-    cfg = TrainConfig.load(run / "config.json")
-    ds = load_run_dataset(run, cfg, full=cfg.eval_full)
     acc = {"glass": [], "off": []}
-    for v in ds.test_views:
-        exr = run / "renders" / f"{v.name}.exr"
-        if not exr.exists():
-            raise RunError(f"{exr}: missing; evaluate the run first (python -m glint_mi.evaluate {run})")
-        gt = v.load_gt()
-        if gt is None:
-            raise RunError(f"{v.gt_path or v.name}: no ground truth; glass pixels need a generated dataset")
-        ch = read_gt_exr(exr)
+    for v in run_dataset(run).test_views:
+        ch, gt = saved_view(run, v)
         for k in ("cR.R", "cI.R", "cT.R"):
             if k not in ch:
-                raise RunError(f"{exr}: no '{k}' buffer; evaluate the run again with today's code")
+                raise RunError(f"{run / 'renders' / v.name}.exr: no '{k}' buffer; evaluate the run again with "
+                               f"today's code")
         col = lambda p: np.stack([ch[f"{p}R"], ch[f"{p}G"], ch[f"{p}B"]], -1)
         rgb, c_r = col(""), col("cR.")
         ks, res = solve_ks(rgb, col("cI."), c_r, col("cT."), ch["T"])

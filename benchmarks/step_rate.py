@@ -17,19 +17,17 @@ import statistics
 import sys
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
 
 def read_rates(run: Path) -> dict[int, tuple[float, float, int]]:
     """{iteration: (rays/s, loss, rays a step)} of a run's ``log.csv``; the rays a step (patches x patch^2) come from
-    its ``config.json`` (flat, or grouped as the config writes it)."""
-    import json
+    its ``config.json``, read as the trainer reads it (``TrainConfig.load``: old runs' configs migrated, a bad one
+    refused)."""
+    from glint_mi.config import TrainConfig
 
-    cfg = json.loads((run / "config.json").read_text())
-    flat = {}
-    for v in cfg.values():
-        if isinstance(v, dict):
-            flat.update(v)
-    flat.update({k: v for k, v in cfg.items() if not isinstance(v, dict)})
-    rays = int(flat["patches"]) * int(flat["patch"]) ** 2
+    cfg = TrainConfig.load(run / "config.json")
+    rays = cfg.patches * cfg.patch ** 2
     out = {}
     with open(run / "log.csv") as fh:
         for r in csv.DictReader(fh):

@@ -750,7 +750,7 @@ def test_step_rate_reads_a_runs_own_step_times_from_its_log(tmp_path):
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from step_rate import main, read_rates, summary
 
-    (tmp_path / "config.json").write_text(json.dumps({"schedule": {"patches": 4, "patch": 5}}))
+    (tmp_path / "config.json").write_text(json.dumps({"run": {"patches": 4, "patch": 5}}))
     with open(tmp_path / "log.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["iteration", "total", "rays_per_s"])

@@ -1,17 +1,20 @@
 #!/bin/bash
-# Forty-ninth session (README, "Two arms aimed at the priors' cost off the glass"): GLINT, the bench command of the
-# checks (the preset: its coarse start and clone_opacity shared) with one arm's switch.
-#   bash docs/results/coarse_to_fine/s49.sh tn5|el tune|check [ROOMS]
-# tn5: --set tau_n=0.5 (the release's normal-prior mask); el: --set kernel=ellipsoid (3DGS's kernel for every set).
+# The arms of the forty-eighth and forty-ninth sessions (README, "A split that keeps its parent's footprint", "Two
+# arms aimed at the priors' cost off the glass"): GLINT, the bench command of the checks (the preset: its coarse
+# start and clone_opacity shared) with one arm's switch.
+#   bash docs/results/coarse_to_fine/s49.sh ax|tn5|el tune|check [ROOMS]
+# ax: --set split_mode=axis (s48b.sh calls this with its worktree and runs folder); tn5: --set tau_n=0.5 (the
+# release's normal-prior mask); el: --set kernel=ellipsoid (3DGS's kernel for every set).
 # ROOMS: a subset of the study's rooms, in order (to split it over the two lanes). One Dr.Jit thread a run; code of
 # the worktree WT (pinned at the declaring commit). A finished run is skipped.
 set -u
 PY=${PY:-/work/main/.venv/bin/python}
-arm=${1:?tn5 or el}
+arm=${1:?ax, tn5 or el}
 case $arm in
+  ax) switch="--set split_mode=axis" ;;
   tn5) switch="--set tau_n=0.5" ;;
   el) switch="--set kernel=ellipsoid" ;;
-  *) echo "arm '$arm': use tn5 or el" >&2; exit 2 ;;
+  *) echo "arm '$arm': use ax, tn5 or el" >&2; exit 2 ;;
 esac
 case ${2:?tune or check} in
   tune) rooms="7301 7302 7303"; data=${DATA73:-/work/data73} ;;
