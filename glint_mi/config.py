@@ -59,6 +59,10 @@ class ModelConfig:
     section 1) and what ``components: auto`` keeps."""
 
     kernel: str = "surfel"
+    normal_source: str = "axis"          # a Gaussian's normal (read by the priors, the depth-normal consistency,
+    #                                      Fresnel and the reflection direction): axis = its surfel's thin axis (the
+    #                                      paper) | attribute = a normal of its own, trained, the surfel's shape
+    #                                      then free for appearance (surfels only)
     sh_degree: int = 1                   # highest SH degree; raised one band every sh_every of the run
     components: str = "auto"             # auto | all | comma list of interface,transmission,reflection
     priors: str = "all"                  # all | none: use the dataset's depth / normal / albedo priors
@@ -110,6 +114,8 @@ class OptimConfig:
     lr_position_final: float = 1.6e-6
     lr_scale: float = 5e-3
     lr_rotation: float = 1e-3
+    lr_normal: float = 2e-3              # normal_source: attribute; twice lr_rotation (a unit quaternion turns its
+    #                                      axes by twice its own change)
     lr_opacity: float = 0.05
     lr_sh_dc: float = 2.5e-3
     lr_sh_rest: float = 1.25e-4
@@ -462,6 +468,11 @@ class TrainConfig:
              "must be an integer >= 1 (4 = a quarter of the width and height)")
         need(self.patch >= 3, "patch", "must be >= 3 (D-SSIM and normal consistency work on patches)")
         need(self.kernel in cv.KERNELS, "kernel", f"use one of {cv.KERNELS}")
+        need(self.normal_source in cv.NORMAL_SOURCES, "normal_source", f"use one of {cv.NORMAL_SOURCES}")
+        need(self.normal_source == "axis" or self.kernel == "surfel", "normal_source",
+             f"'attribute' needs kernel: surfel (an ellipsoid's normal is the axis its ray meets); with kernel: "
+             f"{self.kernel} use normal_source: axis")
+        need(self.lr_normal >= 0, "lr_normal", "must be >= 0")
         need(0 <= self.sh_degree <= 3, "sh_degree", "must be 0..3")
         need(self.max_order in (1, 2), "max_order", "must be 1 or 2")
         need(self.priors in ("all", "none"), "priors", "use all or none")

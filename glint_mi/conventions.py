@@ -21,6 +21,7 @@ SH_C0 = 0.28209479177387814  # Y_0^0, so colour = SH_C0 * dc + 0.5 for degree 0
 IDENTITY_XYZW = (0.0, 0.0, 0.0, 1.0)
 ROLES = ("interface", "transmission", "reflection")
 KERNELS = ("surfel", "ellipsoid")
+NORMAL_SOURCES = ("axis", "attribute")  # a Gaussian's normal: its kernel's thin axis, or an attribute of its own
 
 
 def wxyz_to_xyzw(q: np.ndarray) -> np.ndarray:

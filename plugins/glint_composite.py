@@ -22,6 +22,7 @@ class GaussianSetRef:
         if meta.role is not None and meta.role != role:
             raise ValueError(f"glint: the shape nested as '{role}' declares role '{meta.role}'.")
         self.role, self.shape, self.kernel, self.empty = role, shape, meta.kernel, meta.empty
+        self.normals = meta.normals  # normal_source: attribute
         self.scene = mi.load_dict({"type": "scene", "gaussians": shape})
         self.bvh_stale = False
         self.refresh()

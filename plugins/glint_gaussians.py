@@ -10,6 +10,10 @@
    - |string|
    - ``surfel`` (flat 2D Gaussian evaluated where the ray crosses its plane; normal = thin axis; default, as in the
      paper) or ``ellipsoid`` (3D Gaussian evaluated at its peak along the ray, as in 3DGRT).
+ * - normal_source
+   - |string|
+   - ``axis`` (the kernel's thin axis is its normal; default, as in the paper) or ``attribute`` (each Gaussian carries a
+     normal of its own, read from the file's ``nx, ny, nz``, so that its shape is free for appearance; surfels only).
  * - filename
    - |string|
    - A 3DGS ``.ply`` (raw values: log scales, logit opacity, rot_0..3 = w,x,y,z; optional ``specular`` and
@@ -117,7 +121,7 @@ def gaussian_set_from_props(props, source: str) -> GaussianSet:
 
 
 PROPERTIES = ("filename, data, centers, scales, quaternions, opacities, sh_coeffs, specular, transparency, role, "
-              "kernel, extent, min_shell_ratio, opacity_shells")
+              "kernel, normal_source, extent, min_shell_ratio, opacity_shells")
 
 
 def _factory(props):
@@ -126,7 +130,8 @@ def _factory(props):
     source = f"glint_gaussians '{sid or role or '?'}'"
     gset = gaussian_set_from_props(props, source)
     kw = dict(kernel=props.get("kernel", "surfel"), extent=props.get("extent", SHELL_EXTENT),
-              min_shell_ratio=props.get("min_shell_ratio", 0.3), opacity_shells=bool(props.get("opacity_shells", True)))
+              min_shell_ratio=props.get("min_shell_ratio", 0.3), opacity_shells=bool(props.get("opacity_shells", True)),
+              normal_source=props.get("normal_source", "axis"))
     unread = props.unqueried()
     if unread:  # a misspelling, or a property that 'filename' overrides: either way it would be ignored
         raise GaussianDataError(f"{source}: propert{'ies' if len(unread) > 1 else 'y'} "

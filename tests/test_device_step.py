@@ -18,21 +18,22 @@ from glint_mi.training.optim import RAW_FIELDS, Adam, raw_gradients  # noqa: E40
 from glint_mi.training.strategy import Strategy  # noqa: E402
 
 LRS = {"means": 1.6e-4, "log_scales": 5e-3, "quats_wxyz": 1e-3, "logit_opacity": 0.05, "sh": 2.5e-3,
-       "sh_rest": 1.25e-4, "logit_specular": 0.01, "logit_transparency": 0.05}
+       "sh_rest": 1.25e-4, "logit_specular": 0.01, "logit_transparency": 0.05, "normals": 2e-3}
 
 
 def random_set(rng, n=64, k=4):
     return GaussianSet(means=rng.normal(size=(n, 3)), log_scales=rng.normal(-3, 0.5, size=(n, 3)),
                        quats_wxyz=rng.normal(size=(n, 4)), logit_opacity=rng.normal(size=n),
                        sh=rng.normal(size=(n, k, 3)), logit_specular=rng.normal(-4, 1, size=n),
-                       logit_transparency=rng.normal(-3, 1, size=n))
+                       logit_transparency=rng.normal(-3, 1, size=n), normals=rng.normal(size=(n, 3)) * 2.0)
 
 
 def random_grads(rng, n, k, hit=0.4, nonfinite=0):
     """Renderer-space gradients (float32, as dr.grad gives them) on a random share ``hit`` of the rows."""
     rows = rng.random(n) < hit
     g = {"data": rng.normal(size=(n, 10)), "kernel_scales": rng.normal(size=(n, 3)), "opacities": rng.normal(size=n),
-         "sh_coeffs": rng.normal(size=(n, k * 3)), "specular": rng.normal(size=n), "transparency": rng.normal(size=n)}
+         "sh_coeffs": rng.normal(size=(n, k * 3)), "specular": rng.normal(size=n), "transparency": rng.normal(size=n),
+         "normals": rng.normal(size=(n, 3))}  # the normal attribute's (normal_source: attribute)
     g = {key: (v * (rows if v.ndim == 1 else rows[:, None]) * 1e-3).astype(np.float32) for key, v in g.items()}
     for _ in range(nonfinite):
         g["data"][rng.integers(n), rng.integers(10)] = np.nan
@@ -111,18 +112,20 @@ def test_device_update_equals_the_host_reference(kernel, selective, zero):
     assert dev.read_bad()["interface"] == bad > 0
 
 
-@pytest.mark.parametrize("kernel, shells", [("surfel", True), ("gaussian", False)])
-def test_device_pack_equals_to_mitsuba(kernel, shells):
+@pytest.mark.parametrize("kernel, shells, normals", [("surfel", True, True), ("gaussian", False, False)])
+def test_device_pack_equals_to_mitsuba(kernel, shells, normals):
     """The renderer's arrays packed on the device equal GaussianSet.to_mitsuba (float64, then rounded): bit for bit
-    on LLVM, to float32 rounding elsewhere; a zero quaternion (the identity) and a vanishing opacity included."""
+    on LLVM, to float32 rounding elsewhere; a zero quaternion (the identity) and a vanishing opacity included, and
+    with normal_source: attribute the unit normals."""
     rng = np.random.default_rng(5)
     gs = random_set(rng, n=40)
     gs.quats_wxyz[7] = 0.0
     gs.logit_opacity[3] = -80.0  # an opacity whose shell shrinks to the floor
     dev = DeviceUpdate(Adam(LRS), kernel, 1.0)
     dev.load("interface", gs)
-    got = dev.pack("interface", 0.3, shells, 3.33)
-    ref = gs.to_mitsuba(kernel, 0.3, shells, 3.33)
+    got = dev.pack("interface", 0.3, shells, 3.33, normals)
+    ref = gs.to_mitsuba(kernel, 0.3, shells, 3.33, normals)
+    assert set(got) == set(ref) and ("normals" in ref) == normals
     for key, v in ref.items():
         if LLVM:
             np.testing.assert_array_equal(np.array(got[key]), v.ravel(), err_msg=key)

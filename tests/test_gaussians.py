@@ -17,7 +17,11 @@ def test_ply_round_trip_is_exact(tmp_path, rng):
     g = _set(rng)
     g.save_ply(tmp_path / "a.ply")
     h = GaussianSet.load_ply(tmp_path / "a.ply")
-    for name in ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit_specular", "logit_transparency"):
+    g.normals = rng.normal(size=(len(g), 3)).astype(np.float32)  # a normal attribute of their own (nx, ny, nz)
+    g.save_ply(tmp_path / "a.ply")
+    h = GaussianSet.load_ply(tmp_path / "a.ply")
+    for name in ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit_specular", "logit_transparency",
+                 "normals"):
         np.testing.assert_array_equal(getattr(g, name), getattr(h, name), err_msg=name)
     h.save_ply(tmp_path / "b.ply")
     assert (tmp_path / "a.ply").read_bytes() == (tmp_path / "b.ply").read_bytes()
@@ -37,6 +41,32 @@ def test_ply_is_standard_3dgs_layout(tmp_path, rng):
     rest = PlyData.read(str(tmp_path / "a.ply"))["vertex"]
     np.testing.assert_array_equal(rest["f_rest_1"], g.sh[:, 2, 0])
     np.testing.assert_array_equal(rest["f_rest_3"], g.sh[:, 1, 1])
+
+
+def test_normals_default_to_the_surfels_axis_and_zero_file_normals_are_derived(tmp_path, rng):
+    """Without a normal attribute a set's normals are its rotations' z axes (a surfel's normal, R(q) e_z); a 3DGS
+    file's zero nx, ny, nz are derived the same way, a given one is kept; a zero-length normal given in memory is
+    refused, naming the field."""
+    from plyfile import PlyData, PlyElement
+    g = _set(rng, deg=0)
+    q = cv.normalize_quaternions_xyzw(cv.wxyz_to_xyzw(g.quats_wxyz.astype(np.float64)))
+    x, y, z, w = q.T
+    R = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+                  np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+                  np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
+    np.testing.assert_allclose(g.normals, R[:, :, 2], atol=1e-6)
+    g.save_ply(tmp_path / "a.ply")
+    v = PlyData.read(str(tmp_path / "a.ply"))["vertex"].data.copy()
+    for c in ("nx", "ny", "nz"):
+        v[c][:10] = 0.0  # as 3DGS writes them
+    v["nx"][10:] = 7.0
+    PlyData([PlyElement.describe(v, "vertex")]).write(str(tmp_path / "b.ply"))
+    h = GaussianSet.load_ply(tmp_path / "b.ply")
+    np.testing.assert_allclose(h.normals[:10], R[:10, :, 2], atol=1e-6)
+    np.testing.assert_array_equal(h.normals[10:, 0], 7.0)
+    g.normals[3] = 0.0
+    with pytest.raises(GaussianDataError, match="'normals'.*Gaussian 3"):
+        g.validate()
 
 
 def test_ply_without_extras_gets_paper_inits(tmp_path, rng):

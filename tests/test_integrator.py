@@ -163,7 +163,7 @@ def _sphere_dirs():
     return np.vstack([np.eye(3), -np.eye(3), diag])
 
 
-def _grad_setup(rng, kernel):
+def _grad_setup(rng, kernel, normal_source="axis"):
     def mk(c, k):
         n = len(c)
         return GaussianSet.from_activated(np.array(c), rng.uniform(0.3, 0.5, (n, 3)), rng.normal(size=(n, 4)),
@@ -175,10 +175,14 @@ def _grad_setup(rng, kernel):
                                                      colors=rng.uniform(0.2, 0.9, (14, 3)), sh_degree=1),
             "transmission": mk([[0.1, 0, 2]], kernel)}
     sets["reflection"].sh[:, 1:] = rng.normal(0, 0.3, (14, 3, 3))
+    if normal_source == "attribute":  # normals of their own, away from the surfels' axes
+        for role in ("interface", "transmission"):
+            sets[role].normals = (sets[role].normals + rng.normal(0, 0.5, sets[role].normals.shape)).astype(np.float32)
     # detach_depth off: AD then gives the total derivative that finite differences measure
     desc = {"type": "glint", "components": "all", "max_order": 2, "detach_depth": False}
     for role, s in sets.items():
-        desc[role] = make_shape(s, kernel=kernel if role != "reflection" else "ellipsoid", extent=5.0)
+        desc[role] = make_shape(s, kernel=kernel if role != "reflection" else "ellipsoid", extent=5.0,
+                                normal_source=normal_source if role != "reflection" else "axis")
     integ = mi.load_dict(desc)
     r = rays([[0.05, -0.1, -3], [0.12, 0.02, -3], [-0.05, 0.1, -3]], [[0, 0.02, 1], [0, -0.01, 1], [0.01, 0.02, 1]])
     W = [float(w) for w in rng.uniform(0.5, 1.0, 8)]
@@ -202,12 +206,19 @@ CASES = [("interface.opacities", [0, 1]), ("interface.data", [0, 1, 2, 6, 8]), (
          ("transmission.sh_coeffs", [2])]
 
 
-@pytest.mark.parametrize("kernel", ["surfel", "ellipsoid"])
-def test_gradients_match_finite_differences(rng, kernel):
-    integ, loss = _grad_setup(rng, kernel)
+NORMAL_CASES = [("interface.normals", list(range(6))), ("transmission.normals", [0, 1, 2])]
+
+
+@pytest.mark.parametrize("kernel, normal_source", [("surfel", "axis"), ("ellipsoid", "axis"), ("surfel", "attribute")])
+def test_gradients_match_finite_differences(rng, kernel, normal_source):
+    """normal_source: attribute adds the normals' derivatives (read by Fresnel, the reflection direction and the
+    normal AOV); every other parameter is checked in that mode too."""
+    integ, loss = _grad_setup(rng, kernel, normal_source)
     params = mi.traverse(integ)
     failures, checked, touched = [], 0, set()
-    for key, idxs in CASES:
+    cases = CASES + (NORMAL_CASES if normal_source == "attribute" else [])
+    normal_checked = 0
+    for key, idxs in cases:
         if kernel == "ellipsoid" and key.endswith("kernel_scales"):
             idxs = [0, 1, 2]
         dr.enable_grad(params[key])
@@ -222,23 +233,28 @@ def test_gradients_match_finite_differences(rng, kernel):
         for i in idxs:
             fd = central_difference(params, key, i, value)
             checked += abs(fd) > 1e-3
+            normal_checked += key.endswith("normals") and abs(fd) > 1e-3
             touched.add(key.split(".")[0]) if abs(fd) > 1e-3 else None
             if abs(grad[i] - fd) > max(0.02 * abs(fd), 2e-3):
                 failures.append(f"{key}[{i}]: AD {grad[i]:+.5f} FD {fd:+.5f}")
     assert not failures, "\n".join(failures)
     assert checked >= 15 and touched == {"interface", "reflection", "transmission"}, \
         f"only {checked} non-zero derivatives in {touched}: the test scene does not exercise every set"
+    assert normal_source == "axis" or normal_checked >= 4, f"only {normal_checked} non-zero normal derivatives"
 
 
-@pytest.mark.parametrize("kernel,detach", [("surfel", False), ("ellipsoid", False), ("surfel", True)])
-def test_replay_backward_equals_plain_ad(rng, kernel, detach):
+@pytest.mark.parametrize("kernel,detach,normal_source", [("surfel", False, "axis"), ("ellipsoid", False, "axis"),
+                                                          ("surfel", True, "axis"), ("surfel", False, "attribute")])
+def test_replay_backward_equals_plain_ad(rng, kernel, detach, normal_source):
     """The constant-memory replay gives the same gradients as AD through evaluated loops (rel 1e-3), for every
-    parameter of every set, with second order, the direct transmission pass and all AOV adjoints in the loss."""
-    integ, _ = _grad_setup(rng, kernel)
+    parameter of every set (the normals too with normal_source: attribute), with second order, the direct
+    transmission pass and all AOV adjoints in the loss."""
+    integ, _ = _grad_setup(rng, kernel, normal_source)
     integ.detach_depth = detach
     params = mi.traverse(integ)
     keys = [k for k in params.keys() if k.split(".")[-1] in ("data", "opacities", "kernel_scales", "sh_coeffs",
-                                                             "specular", "transparency")]
+                                                             "specular", "transparency", "normals")]
+    assert any(k.endswith("normals") for k in keys) == (normal_source == "attribute")
     r = rays(rng.normal([0, 0, -3], [0.15, 0.15, 0], (64, 3)), rng.normal([0, 0, 1], [0.03, 0.03, 0], (64, 3)))
     fwd = mi.Vector3f(0, 0, 1)
     adj = {"rgb": mi.Color3f(*[mi.Float(rng.uniform(0.5, 1, 64)) for _ in range(3)]),

@@ -70,13 +70,14 @@ def camera_dict(width=96, height=54, spp=1, origin=(0.3, -1.8, 1.0), target=(0.0
 
 
 def gaussian_scene_dict(sets: dict[str, GaussianSet], kernel="surfel", opacity_shells: bool = True,
-                        **integrator_props) -> dict:
+                        normal_source: str = "axis", **integrator_props) -> dict:
     """A Mitsuba scene dict: the glint integrator with one glint_gaussians shape per set (no sensor)."""
     from glint_mi.model.shapes import make_shape
 
     integ = {"type": "glint", **integrator_props}
     for role, s in sets.items():
-        integ[role] = make_shape(s, kernel=kernel, role=role, shape_id=role, opacity_shells=opacity_shells)
+        integ[role] = make_shape(s, kernel=kernel, role=role, shape_id=role, opacity_shells=opacity_shells,
+                                 normal_source=normal_source)
     return {"type": "scene", "integrator": integ}
 
 

@@ -31,7 +31,7 @@ def integrator_props(render, components: str = "all", max_hits: int | None = Non
 
 def shape_props(cfg) -> dict:
     """Each glint_gaussians shape's properties for a run configured as ``cfg``."""
-    return {"kernel": cfg.kernel, "opacity_shells": cfg.opacity_shells}
+    return {"kernel": cfg.kernel, "opacity_shells": cfg.opacity_shells, "normal_source": cfg.normal_source}
 
 
 def _prop_xml(name: str, value, indent: str) -> str:

@@ -32,6 +32,22 @@ def shell_factors(opacity, extent: float = SHELL_EXTENT) -> np.ndarray:
     return np.clip(np.sqrt(np.maximum(r2, 0.0)) / extent, MIN_SHELL_FACTOR, 1.0)
 
 
+NORMAL_MIN_LENGTH = 1e-6  # a normal attribute shorter than this has no direction (refused)
+
+
+def axis_normals(quats_wxyz) -> np.ndarray:
+    """The local z axis of each rotation in world space (a surfel's normal): the third column of R(q), q normalised."""
+    q = cv.normalize_quaternions_xyzw(cv.wxyz_to_xyzw(np.asarray(quats_wxyz, np.float64).reshape(-1, 4)))
+    x, y, z, w = q.T
+    return np.stack([2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)], axis=1)
+
+
+def unit_normals(normals) -> np.ndarray:
+    """Rows of ``normals`` at unit length (float64)."""
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), NORMAL_MIN_LENGTH)
+
+
 EXTRA_FIELDS = ("specular", "transparency")  # logit-valued per-Gaussian extras, written after the 3DGS fields
 
 
@@ -51,6 +67,9 @@ class GaussianSet:
         sh:           [N, K, 3] SH coefficients, K = (deg+1)^2; sh[:, 0] is the DC term.
         logit_specular:    [N] sigmoid -> specular weight beta.
         logit_transparency:[N] sigmoid -> transparency tau.
+        normals:      [N, 3] the normal a set carries as its own attribute (``normal_source: attribute``), not
+                      necessarily unit length; the renderer reads it normalised. Derived from the rotation (the local
+                      z axis, a surfel's normal) where not given; ignored with ``normal_source: axis``.
     """
 
     means: np.ndarray
@@ -60,8 +79,11 @@ class GaussianSet:
     sh: np.ndarray
     logit_specular: np.ndarray
     logit_transparency: np.ndarray
+    normals: np.ndarray | None = None
 
     def __post_init__(self):
+        if self.normals is None:
+            self.normals = axis_normals(self.quats_wxyz)
         for f in dataclasses.fields(self):
             setattr(self, f.name, np.ascontiguousarray(np.asarray(getattr(self, f.name), dtype=np.float32)))
         self.validate()
@@ -70,7 +92,7 @@ class GaussianSet:
     def validate(self, source: str = "GaussianSet") -> "GaussianSet":
         n = self.means.shape[0] if self.means.ndim == 2 else -1
         expected = {"means": (n, 3), "log_scales": (n, 3), "quats_wxyz": (n, 4), "logit_opacity": (n,),
-                    "logit_specular": (n,), "logit_transparency": (n,)}
+                    "logit_specular": (n,), "logit_transparency": (n,), "normals": (n, 3)}
         for name, shape in expected.items():
             arr = getattr(self, name)
             if arr.shape != shape:
@@ -85,6 +107,11 @@ class GaussianSet:
                 bad = int(np.argwhere((~np.isfinite(arr.reshape(arr.shape[0], -1))).any(1))[0, 0])
                 raise GaussianDataError(f"{source}: field '{f.name}' has NaN/Inf (first at Gaussian {bad}); "
                                         f"remove or re-initialise those Gaussians.")
+        short = np.linalg.norm(self.normals.astype(np.float64), axis=1) < NORMAL_MIN_LENGTH
+        if short.any():
+            raise GaussianDataError(f"{source}: field 'normals' has a zero-length row (first at Gaussian "
+                                    f"{int(np.argmax(short))}); give a direction, or leave the field out to derive it "
+                                    f"from the rotation.")
         return self
 
     def __len__(self) -> int:
@@ -136,7 +163,7 @@ class GaussianSet:
 
     # --------------------------------------------------------- mitsuba pack
     def to_mitsuba(self, kernel: str = "surfel", min_shell_ratio: float = 0.3, opacity_shells: bool = True,
-                   extent: float = SHELL_EXTENT) -> dict[str, np.ndarray]:
+                   extent: float = SHELL_EXTENT, normals: bool = False) -> dict[str, np.ndarray]:
         """Arrays for the ``ellipsoids`` shape behind ``glint_gaussians`` (float32, C-contiguous).
 
         ``data`` [N,10] holds centre, *shell* scales and (x,y,z,w) quaternion: the bounding shell Mitsuba's BVH
@@ -146,7 +173,8 @@ class GaussianSet:
         also shrunk to where the Gaussian's alpha = opacity x G falls to exp(-extent^2 / 2) (1/255 at the default
         extent, the compositing cut-off an opaque Gaussian's shell already has): :func:`shell_factors`.
         ``kernel_scales`` [N,3] are the standard deviations the integrator evaluates (a surfel ignores the third, which
-        is kept so that files round-trip).
+        is kept so that files round-trip). With ``normals`` (``normal_source: attribute``) also ``normals`` [N,3], the
+        unit normal attribute the integrator then reads instead of the rotation's axis.
         """
         a = self.activated()
         ks = a["scales"]
@@ -164,6 +192,8 @@ class GaussianSet:
             "specular": a["specular"][:, None],
             "transparency": a["transparency"][:, None],
         }
+        if normals:
+            out["normals"] = unit_normals(self.normals)
         return {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in out.items()}
 
     @classmethod
@@ -175,15 +205,17 @@ class GaussianSet:
         if kernel == "surfel":  # keep the file loadable by 3DGS viewers: a thin but finite third axis
             ks[:, 2] = np.maximum(ks[:, 2], 1e-6 * ks[:, :2].max(axis=1, initial=0.0) + 1e-12)
         get = lambda k, d: np.asarray(arrays[k], np.float64).reshape(n) if k in arrays else np.full(n, d)
+        normals = np.asarray(arrays["normals"], np.float64).reshape(n, 3) if "normals" in arrays else None
         return cls(means=data[:, :3], log_scales=np.log(ks), quats_wxyz=cv.xyzw_to_wxyz(data[:, 6:10]),
                    logit_opacity=cv.logit(get("opacities", INIT_OPACITY)),
                    sh=np.asarray(arrays.get("sh_coeffs", np.zeros((n, 3))), np.float64).reshape(n, -1, 3),
                    logit_specular=cv.logit(get("specular", INIT_SPECULAR)),
-                   logit_transparency=cv.logit(get("transparency", INIT_TRANSPARENCY)))
+                   logit_transparency=cv.logit(get("transparency", INIT_TRANSPARENCY)), normals=normals)
 
     # ---------------------------------------------------------------- PLY
     def save_ply(self, path: str | os.PathLike) -> Path:
-        """Write a standard 3DGS binary ``.ply`` plus ``specular``/``transparency`` (logits); atomic."""
+        """Write a standard 3DGS binary ``.ply`` plus ``specular``/``transparency`` (logits); atomic. ``nx, ny, nz``
+        (zeros in 3DGS's files) hold the normal attribute."""
         from plyfile import PlyData, PlyElement
 
         n, k = len(self), self.sh.shape[1]
@@ -192,7 +224,7 @@ class GaussianSet:
         names += ["opacity"] + [f"scale_{i}" for i in range(3)] + [f"rot_{i}" for i in range(4)] + list(EXTRA_FIELDS)
         # 3DGS stores f_rest channel-major: all R coefficients 1..K-1, then G, then B.
         rest = np.transpose(self.sh[:, 1:, :], (0, 2, 1)).reshape(n, -1)
-        cols = [self.means, np.zeros((n, 3), np.float32), self.sh[:, 0, :], rest, self.logit_opacity[:, None],
+        cols = [self.means, self.normals, self.sh[:, 0, :], rest, self.logit_opacity[:, None],
                 self.log_scales, self.quats_wxyz, self.logit_specular[:, None], self.logit_transparency[:, None]]
         table = np.concatenate(cols, axis=1).astype(np.float32)
         rec = np.empty(n, dtype=[(nm, "f4") for nm in names])
@@ -206,7 +238,8 @@ class GaussianSet:
 
     @classmethod
     def load_ply(cls, path: str | os.PathLike) -> "GaussianSet":
-        """Read a 3DGS ``.ply`` (extras optional: missing ``specular``/``transparency`` get their init values)."""
+        """Read a 3DGS ``.ply`` (extras optional: missing ``specular``/``transparency`` get their init values; a
+        normal ``nx, ny, nz`` of zero length, as 3DGS writes them, or none, is derived from the rotation)."""
         from plyfile import PlyData
 
         path = Path(path)
@@ -234,11 +267,17 @@ class GaussianSet:
         if k > 1:
             sh[:, 1:] = np.transpose(col([f"f_rest_{i}" for i in range(n_rest)]).reshape(n, 3, k - 1), (0, 2, 1))
         extra = lambda nm, init: np.asarray(v[nm], np.float32) if nm in have else np.full(n, cv.logit(init), np.float32)
+        quats = col(["rot_0", "rot_1", "rot_2", "rot_3"])
+        normals = axis_normals(quats)
+        if {"nx", "ny", "nz"} <= have:
+            given = col(["nx", "ny", "nz"])
+            given_ = ~(np.linalg.norm(given, axis=1) < NORMAL_MIN_LENGTH)  # NaN stays, and validate refuses it
+            normals[given_] = given[given_]
         try:
             return cls(means=col(["x", "y", "z"]), log_scales=col(["scale_0", "scale_1", "scale_2"]),
-                       quats_wxyz=col(["rot_0", "rot_1", "rot_2", "rot_3"]), logit_opacity=np.asarray(v["opacity"]),
+                       quats_wxyz=quats, logit_opacity=np.asarray(v["opacity"]),
                        sh=sh, logit_specular=extra("specular", INIT_SPECULAR),
-                       logit_transparency=extra("transparency", INIT_TRANSPARENCY))
+                       logit_transparency=extra("transparency", INIT_TRANSPARENCY), normals=normals)
         except GaussianDataError as exc:
             raise GaussianDataError(str(exc).replace("GaussianSet", str(path))) from None
 

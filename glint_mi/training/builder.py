@@ -152,7 +152,7 @@ def learning_rates(tr):
     c = tr.cfg
     lrs = {"means": c.lr_position * tr.extent, "log_scales": c.lr_scale, "quats_wxyz": c.lr_rotation,
            "logit_opacity": c.lr_opacity, "sh": c.lr_sh_dc, "sh_rest": c.lr_sh_rest,
-           "logit_specular": c.lr_specular, "logit_transparency": c.lr_transparency}
+           "logit_specular": c.lr_specular, "logit_transparency": c.lr_transparency, "normals": c.lr_normal}
     return {k: v * c.lr_multiplier for k, v in lrs.items()}
 
 def build_scene(tr):
@@ -239,7 +239,8 @@ def load_checkpoint(tr):
     tr.history = json.loads(str(z["history"]))
     tr._resume_affine = z.get("depth_affine")
     roles = sorted({k.split("/")[1] for k in z if k.startswith("set/")}, key=cv.ROLES.index)
-    tr.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS}) for r in roles}
+    # a checkpoint from before the normal attribute has none: GaussianSet derives it from the rotation
+    tr.sets = {r: GaussianSet(**{f: z[f"set/{r}/{f}"] for f in RAW_FIELDS if f"set/{r}/{f}" in z}) for r in roles}
     tr.adam = Adam(learning_rates(tr), eps=tr.cfg.adam_eps, selective=tr.cfg.adam == "selective")
     tr.adam.load_state_dict({k[5:]: v for k, v in z.items() if k.startswith("adam/")})
     tr.parts = parts_for(tr.cfg)

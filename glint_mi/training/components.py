@@ -75,7 +75,7 @@ class ComponentsPolicy:
         fields = ("kernel", "blend", "w_l1", "w_dssim", "w_consistency", "normal_weight", "clone_opacity",
                   "split_mode") + (
             ("w_sfm_depth",) if c.no_glass == "3dgs" else ())
-        return {k: m[k] for k in fields}
+        return {**{k: m[k] for k in fields}, "normal_source": "axis"}  # 3DGS's ellipsoids: their own axis
 
     # ------------------------------------------------------------- during training
     def decide_at(self) -> dict[str, int]:

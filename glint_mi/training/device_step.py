@@ -24,10 +24,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from glint_mi.model.gaussians import MIN_SHELL_FACTOR, GaussianSet
+from glint_mi.model.gaussians import MIN_SHELL_FACTOR, NORMAL_MIN_LENGTH, GaussianSet
 from glint_mi.training.optim import RAW_FIELDS
-
-PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 
 
 def _index(n: int):
@@ -132,6 +130,19 @@ class DeviceUpdate:
         qj = F64(dr.gather(mi.Float, s.value["quats_wxyz"], i) / qlen)  # float32 q / |q|, as the reference
         gj = dr.gather(F64, data, row * 10 + 6 + (j + 3) % 4)
         out["quats_wxyz"] = (gj - qj * dot) / F64(qlen)
+        if "normals" in grads:  # normal_source: attribute; the reference's n / |n| (|n| in float32, as its norm)
+            i = _index(n * 3)
+            row = i // 3
+            nv = [s.col("normals", row, c) for c in range(3)]
+            nlen = dr.maximum(dr.sqrt((nv[0] * nv[0] + nv[1] * nv[1]) + nv[2] * nv[2]), NORMAL_MIN_LENGTH)
+            nhat = [F64(nc / nlen) for nc in nv]
+            gn = F64(grads["normals"])
+            g = [dr.gather(F64, gn, row * 3 + c) for c in range(3)]
+            dot = (nhat[0] * g[0] + nhat[1] * g[1]) + nhat[2] * g[2]
+            nj = F64(dr.gather(mi.Float, s.value["normals"], i) / nlen)
+            out["normals"] = (gn - nj * dot) / F64(nlen)
+        else:
+            out["normals"] = dr.zeros(F64, n * 3)
         for f, key in (("logit_opacity", "opacities"), ("logit_specular", "specular"),
                        ("logit_transparency", "transparency")):
             p = 1.0 / (1.0 + dr.exp(-F64(s.value[f])))
@@ -208,7 +219,8 @@ class DeviceUpdate:
         dr.schedule(*s.value.values(), *s.m.values(), *s.v.values(), *s.steps.values(), s.grad_sum, s.count, s.bad)
 
     # ------------------------------------------------------------------ packing
-    def pack(self, role: str, min_shell_ratio: float, opacity_shells: bool, extent: float) -> dict:
+    def pack(self, role: str, min_shell_ratio: float, opacity_shells: bool, extent: float,
+             normals: bool = False) -> dict:
         """:meth:`glint_mi.model.gaussians.GaussianSet.to_mitsuba` on the device (float64, rounded to float32 at the
         end, as the reference): the ``glint_gaussians`` parameters (flat float32 Dr.Jit arrays) of the set's values."""
         F64 = mi.Float64
@@ -233,10 +245,17 @@ class DeviceUpdate:
         data = columns[-1]
         for k in range(8, -1, -1):
             data = dr.select(c == k, columns[k], data)
-        return {"data": mi.Float(data), "kernel_scales": mi.Float(dr.exp(F64(s.value["log_scales"]))),
-                "opacities": mi.Float(sig(s.value["logit_opacity"])), "sh_coeffs": mi.Float(s.value["sh"]),
-                "specular": mi.Float(sig(s.value["logit_specular"])),
-                "transparency": mi.Float(sig(s.value["logit_transparency"]))}
+        out = {"data": mi.Float(data), "kernel_scales": mi.Float(dr.exp(F64(s.value["log_scales"]))),
+               "opacities": mi.Float(sig(s.value["logit_opacity"])), "sh_coeffs": mi.Float(s.value["sh"]),
+               "specular": mi.Float(sig(s.value["logit_specular"])),
+               "transparency": mi.Float(sig(s.value["logit_transparency"]))}
+        if normals:  # unit_normals: n / max(|n|, NORMAL_MIN_LENGTH)
+            i = _index(n * 3)
+            r = i // 3
+            nv = [F64(s.col("normals", r, c)) for c in range(3)]
+            nlen = dr.maximum(dr.sqrt((nv[0] * nv[0] + nv[1] * nv[1]) + nv[2] * nv[2]), NORMAL_MIN_LENGTH)
+            out["normals"] = mi.Float(F64(s.value["normals"]) / nlen)
+        return out
 
     def read_bad(self) -> dict[str, int]:
         """Non-finite gradient entries zeroed so far, per set (reads back)."""

@@ -10,13 +10,15 @@ from __future__ import annotations
 import numpy as np
 
 from glint_mi import conventions as cv
-from glint_mi.model.gaussians import GaussianSet
+from glint_mi.model.gaussians import NORMAL_MIN_LENGTH, GaussianSet
 
-RAW_FIELDS = ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit_specular", "logit_transparency")
+RAW_FIELDS = ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit_specular", "logit_transparency",
+              "normals")
 
 
 def raw_gradients(gset: GaussianSet, grads: dict[str, np.ndarray], kernel: str) -> dict[str, np.ndarray]:
-    """Chain rule from the renderer's parameters (``to_mitsuba`` names) to the raw fields of ``gset``."""
+    """Chain rule from the renderer's parameters (``to_mitsuba`` names) to the raw fields of ``gset``. Without a
+    ``normals`` gradient (``normal_source: axis``) the normals get none."""
     n = len(gset)
     a = gset.activated()
     data = grads["data"].reshape(n, 10)
@@ -29,6 +31,14 @@ def raw_gradients(gset: GaussianSet, grads: dict[str, np.ndarray], kernel: str) 
     g_q = cv.xyzw_to_wxyz(data[:, 6:10])
     g_q = (g_q - qhat * np.sum(qhat * g_q, axis=1, keepdims=True)) / qn_len
     dsig = lambda p: p * (1.0 - p)
+    if "normals" in grads:  # the renderer reads n / |n|: the gradient's part across the normal, over |n|
+        nv = gset.normals  # float32, as the quaternions' norm above
+        n_len = np.maximum(np.linalg.norm(nv, axis=1, keepdims=True), NORMAL_MIN_LENGTH)
+        nhat = nv / n_len
+        g_n = grads["normals"].reshape(n, 3)
+        g_n = (g_n - nhat * np.sum(nhat * g_n, axis=1, keepdims=True)) / n_len
+    else:
+        g_n = np.zeros((n, 3))
     return {
         "means": data[:, :3].copy(),
         "log_scales": g_scale,
@@ -37,6 +47,7 @@ def raw_gradients(gset: GaussianSet, grads: dict[str, np.ndarray], kernel: str) 
         "sh": grads["sh_coeffs"].reshape(gset.sh.shape),
         "logit_specular": grads["specular"].reshape(n) * dsig(a["specular"]),
         "logit_transparency": grads["transparency"].reshape(n) * dsig(a["transparency"]),
+        "normals": g_n,
     }
 
 
@@ -191,4 +202,10 @@ class Adam:
         self.state = {}
         roles = {k.split("/")[0] for k in arrays}
         for role in roles:
-            self.state[role] = {f: tuple(arrays[f"{role}/{f}/{x}"].copy() for x in "mvn") for f in RAW_FIELDS}
+            st = self.state[role] = {}
+            for f in RAW_FIELDS:
+                if f == "normals" and f"{role}/{f}/m" not in arrays:  # a checkpoint from before the normal attribute
+                    n = arrays[f"{role}/means/n"]
+                    st[f] = (np.zeros((len(n), 3), np.float32), np.zeros((len(n), 3), np.float32), np.zeros_like(n))
+                    continue
+                st[f] = tuple(arrays[f"{role}/{f}/{x}"].copy() for x in "mvn")

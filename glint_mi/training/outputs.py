@@ -85,6 +85,7 @@ def write_log(tr):
 
 def save_model(tr) -> Path:
     """model/<role>.ply (3DGS + specular/transparency) and model/scene.xml renderable by Mitsuba."""
+    tr.sync()
     model = tr.run_dir / "model"
     model.mkdir(exist_ok=True)
     sets = tr.active_sets()

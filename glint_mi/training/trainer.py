@@ -36,7 +36,6 @@ if TYPE_CHECKING:
     from glint_mi.data import Dataset
     from glint_mi.model.gaussians import GaussianSet
 
-PARAM_KEYS = ("data", "kernel_scales", "opacities", "sh_coeffs", "specular", "transparency")
 
 
 BUDGET_WARN = 0.02  # share of the interface's rays that may spend the whole hit budget before the run warns
@@ -105,7 +104,7 @@ class Trainer:
         """Send the sets' current values (and sizes) to the renderer; a `data` change rebuilds that set's BVH, so
         only ``roles`` (default all) are sent, packed as each shape was made (its opacity shells included)."""
         import drjit as dr
-        from glint_mi.model.shapes import info, pack
+        from glint_mi.model.shapes import info, pack, param_keys
 
         for role, gs in self.sets.items():
             if roles is not None and role not in roles:
@@ -113,14 +112,14 @@ class Trainer:
             shape = self.integ.sets[role].shape
             if self.dev is not None:  # packed on the device from its values (update: device)
                 meta = info(shape)
-                arrays = self.dev.pack(role, meta.min_shell_ratio, meta.opacity_shells, meta.extent)
+                arrays = self.dev.pack(role, meta.min_shell_ratio, meta.opacity_shells, meta.extent, meta.normals)
                 dr.eval(*arrays.values())
                 # Mitsuba builds a set's BVH from the host memory of `data` without waiting for the LLVM kernels
                 # that write it (measured: wrong hits, a different loss every run with traversal bvh)
                 dr.sync_thread()
             else:
                 arrays = {k: floats(v.ravel()) for k, v in pack(shape, gs).items()}
-            for k in PARAM_KEYS:
+            for k in param_keys(shape):
                 key = f"{role}.{k}"
                 self.params[key] = arrays[k]
                 dr.enable_grad(self.params[key])
@@ -128,13 +127,19 @@ class Trainer:
 
     def sync(self) -> None:
         """Bring the host's sets, Adam moments and densification statistics up to date with the device's (update:
-        device; a no-op when nothing changed since): before anything on the host reads or changes them."""
-        if self.dev is None or not self._host_stale:
-            return
-        for role, gs in self.sets.items():
-            if role in self.dev.sets:
-                self.dev.pull(role, gs, self.strategy)
-        self._host_stale = False
+        device; a no-op when nothing changed since): before anything on the host reads or changes them. With
+        normal_source: axis the sets' normals (unused in training) are set to their rotations' axes, so that what is
+        saved (the .ply's nx, ny, nz, checkpoints) is the normal the model renders with."""
+        if self.dev is not None and self._host_stale:
+            for role, gs in self.sets.items():
+                if role in self.dev.sets:
+                    self.dev.pull(role, gs, self.strategy)
+            self._host_stale = False
+        if self.cfg.normal_source == "axis":
+            from glint_mi.model.gaussians import axis_normals
+
+            for gs in self.sets.values():
+                gs.normals = axis_normals(gs.quats_wxyz).astype(np.float32)
 
     def _reload(self, roles) -> None:
         """Send the sets ``roles`` (changed on the host: densified, reset) back to the device."""
@@ -283,8 +288,9 @@ class Trainer:
             return self._update_device(st, lr_pos)
         for role in list(self.sets):
             gs = self.sets[role]
-            grads = {k: np.array(dr.grad(self.params[f"{role}.{k}"]), np.float64) for k in PARAM_KEYS}
-            for k in PARAM_KEYS:
+            pk = self._param_keys(role)
+            grads = {k: np.array(dr.grad(self.params[f"{role}.{k}"]), np.float64) for k in pk}
+            for k in pk:
                 dr.clear_grad(self.params[f"{role}.{k}"])
             if role not in st["trained"] or role not in st["traced"]:
                 continue
@@ -306,6 +312,12 @@ class Trainer:
             touched = (g["logit_opacity"] != 0) | np.any(g["means"] != 0, axis=1) | np.any(g["sh"][:, 0] != 0, axis=1)
             self.adam.step(role, gs, g, {"means": lr_pos}, rows=touched)
 
+    def _param_keys(self, role: str) -> tuple[str, ...]:
+        """The renderer's parameters of ``role``'s shape (``normals`` with normal_source: attribute)."""
+        from glint_mi.model.shapes import param_keys
+
+        return param_keys(self.integ.sets[role].shape)
+
     def _frozen_fields(self, role: str) -> set[str]:
         """The raw fields of ``role`` that get no gradient: beta and tau are interface attributes (the release's
         order 2 uses G_trans's beta); without a transmission set tau means nothing and keeps its initial value."""
@@ -323,8 +335,9 @@ class Trainer:
         lr = {"means": dr.opaque(mi.Float64, lr_pos)}
         degree = dr.opaque(mi.UInt32, st["sh_degree"])
         for role in list(self.sets):
-            keys = [f"{role}.{k}" for k in PARAM_KEYS]
-            grads = {k: dr.grad(self.params[key]) for k, key in zip(PARAM_KEYS, keys)}
+            pk = self._param_keys(role)
+            keys = [f"{role}.{k}" for k in pk]
+            grads = {k: dr.grad(self.params[key]) for k, key in zip(pk, keys)}
             for key in keys:
                 dr.clear_grad(self.params[key])
             if role not in st["trained"] or role not in st["traced"]:
