@@ -1,0 +1,23 @@
+#!/bin/bash
+# The fiftieth session's diagnosis on 9803 (README, "What costs GLINT on 9803 at the bench budget"): GLINT, the bench
+# command of the checks (the preset), seed 0, with one term off or the normal attribute; decides nothing.
+#   bash docs/results/converge_98xx/s50d.sh base|nonormal|nodepth|nocons|na ...
+# One Dr.Jit thread a run; code of the worktree WT (pinned at the declaring commit). A finished run is skipped.
+set -u
+PY=${PY:-/work/main/.venv/bin/python}
+WT=${WT:-/work/wt50}; RUNS=${RUNS:-/work/runs50}; DATA=${DATA98:-/work/data98_r}
+cd "$WT"; export PYTHONPATH=$WT:${WT}_path
+for arm in "$@"; do
+  case $arm in
+    base) switch="" ;;
+    nonormal) switch="--set w_normal=0" ;;
+    nodepth) switch="--set w_depth=0" ;;
+    nocons) switch="--set w_consistency=0" ;;
+    na) switch="--set normal_source=attribute" ;;
+    *) echo "arm '$arm': use base, nonormal, nodepth, nocons or na" >&2; exit 2 ;;
+  esac
+  echo "=== $(date -u +%FT%TZ) d9803_$arm"
+  $PY -m glint_mi.benchmark --preset bench --methods glint --set threads=1 --set eval_every=1000 \
+      $switch --data "$DATA/r9803" --out "$RUNS/d9803_$arm"
+  echo "=== rc=$? $(date -u +%FT%TZ)"
+done
