@@ -1,7 +1,7 @@
 #!/bin/bash
 # The fiftieth session's diagnosis on 9803 (README, "What costs GLINT on 9803 at the bench budget"): GLINT, the bench
 # command of the checks (the preset), seed 0, with one term off or the normal attribute; decides nothing.
-#   bash docs/results/converge_98xx/s50d.sh base|nonormal|nodepth|nocons|na ...
+#   bash docs/results/converge_98xx/s50d.sh base|nonormal|nodepth|nocons|na|noterms|nosfm|iface|el ...
 # One Dr.Jit thread a run; code of the worktree WT (pinned at the declaring commit). A finished run is skipped.
 set -u
 PY=${PY:-/work/main/.venv/bin/python}
@@ -14,7 +14,11 @@ for arm in "$@"; do
     nodepth) switch="--set w_depth=0" ;;
     nocons) switch="--set w_consistency=0" ;;
     na) switch="--set normal_source=attribute" ;;
-    *) echo "arm '$arm': use base, nonormal, nodepth, nocons or na" >&2; exit 2 ;;
+    noterms) switch="--set w_normal=0 --set w_depth=0" ;;  # second round: both prior terms off (the cue still read)
+    nosfm) switch="--set w_sfm_depth=0" ;;
+    iface) switch="--set components=interface" ;;
+    el) switch="--set kernel=ellipsoid" ;;
+    *) echo "arm '$arm': use base, nonormal, nodepth, nocons, na, noterms, nosfm, iface or el" >&2; exit 2 ;;
   esac
   echo "=== $(date -u +%FT%TZ) d9803_$arm"
   $PY -m glint_mi.benchmark --preset bench --methods glint --set threads=1 --set eval_every=1000 \
