@@ -16,7 +16,7 @@ from glint_mi.training.batch import patch_neighbours, pixel_rays
 from glint_mi.config import ConfigError, TrainConfig
 from glint_mi.data import DatasetError, load_dataset
 from glint_mi.dataset.generate import Preset, make_scene
-from glint_mi.model.gaussians import GaussianSet
+from glint_mi.model.gaussians import GaussianSet, axis_normals
 from glint_mi.model.render import camera_rays
 from glint_mi.scene import SceneError, read_scene, scene_xml
 from glint_mi.training.optim import RAW_FIELDS, Adam, raw_gradients
@@ -562,6 +562,28 @@ def test_selective_adam_steps_only_touched_rows(rng):
     assert g2.logit_opacity[0] - b2[0] < -0.15 and np.all(g2.logit_opacity[1:] == b2[1:])
 
 
+def test_a_checkpoint_from_before_the_normal_attribute_loads(rng):
+    """A checkpoint written before the normal attribute has no normals nor their moments: the set derives them from
+    its rotations, the Adam starts their moments at zero, and the other fields' state is kept as it was."""
+    g = GaussianSet.from_activated(rng.normal(size=(5, 3)), 0.1, rng.normal(size=(5, 4)), opacities=0.5)
+    lrs = {f: 0.1 for f in RAW_FIELDS} | {"sh_rest": 0.1}
+    adam = Adam(lrs)
+    grads = {f: rng.normal(size=getattr(g, f).shape) for f in RAW_FIELDS}
+    adam.step("interface", g, grads)
+    old = {k: v for k, v in adam.state_dict().items() if "/normals/" not in k}
+    fields = {f: getattr(g, f) for f in RAW_FIELDS if f != "normals"}
+    h = GaussianSet(**fields)
+    np.testing.assert_allclose(h.normals, axis_normals(g.quats_wxyz), atol=1e-7)
+    back = Adam(lrs)
+    back.load_state_dict(old)
+    m, v, n = back.state["interface"]["normals"]
+    assert m.shape == v.shape == (5, 3) and not m.any() and not v.any() and n.shape == (5,) and not n.any()
+    for f in ("means", "quats_wxyz"):
+        for x, y in zip(back.state["interface"][f], adam.state["interface"][f]):
+            np.testing.assert_array_equal(x, y)
+    back.step("interface", h, grads)  # and it steps
+
+
 @pytest.mark.parametrize("native_step", [True, False])
 def test_adam_equals_the_row_masked_formulation_bit_for_bit(rng, monkeypatch, native_step):
     """The optimiser gathers the touched rows once per field (in numpy, or in one pass of glint_mi.native's
@@ -719,7 +741,6 @@ def test_normal_attribute_option_trains_and_reaches_every_shape(room, tmp_path):
     the same (losses to 3e-4, as the default's test); the saved scene.xml, its .ply files and load_run keep the
     normals; an ellipsoid kernel with it is refused before any work, naming the field."""
     from glint_mi.evaluate import load_run
-    from glint_mi.model.gaussians import axis_normals
     from glint_mi_plugins.glint_gaussians import info
 
     spec = read_scene(room.parent / "scene.xml")
