@@ -104,6 +104,16 @@ def rotmat_to_qvec(R: np.ndarray) -> np.ndarray:
     return -q if q[0] < 0 else q
 
 
+def rotation_matrices_xyzw(q_xyzw: np.ndarray) -> np.ndarray:
+    """[N, 3, 3] rotation matrices of unit quaternions [N, 4] in (x, y, z, w) order (local -> world)."""
+    x, y, z, w = np.asarray(q_xyzw).T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], 1)
+
+
 def qvec_to_rotmat(q) -> np.ndarray:
     w, x, y, z = q
     return np.array([[1 - 2 * y * y - 2 * z * z, 2 * x * y - 2 * w * z, 2 * x * z + 2 * w * y],

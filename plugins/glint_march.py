@@ -76,9 +76,10 @@ class GaussianPasses(mi.ad.integrators.common.ADIntegrator):
             zmin = (s.z <= s.x) & (s.z <= s.y)
             ymin = ~zmin & (s.y <= s.x)
             n_local = dr.select(zmin, mi.Vector3f(0, 0, 1), dr.select(ymin, mi.Vector3f(0, 1, 0), mi.Vector3f(1, 0, 0)))
-        n = rot @ n_local
         if gs.normals:  # normal_source: attribute - the set's own unit normals (packed normalised), not the axis
             n = mi.Vector3f(shape.eval_attribute_3("normals", si, active))
+        else:
+            n = rot @ n_local
         n = dr.select(dr.dot(n, d) > 0, -n, n)
         G = dr.exp(-0.5 * power)
         alpha = dr.minimum(opacity * G, self.alpha_max)

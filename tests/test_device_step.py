@@ -28,8 +28,9 @@ def random_set(rng, n=64, k=4):
                        logit_transparency=rng.normal(-3, 1, size=n), normals=rng.normal(size=(n, 3)) * 2.0)
 
 
-def random_grads(rng, n, k, hit=0.4, nonfinite=0):
-    """Renderer-space gradients (float32, as dr.grad gives them) on a random share ``hit`` of the rows."""
+def random_grads(rng, n, k, hit=0.4, nonfinite=0, normals=True):
+    """Renderer-space gradients (float32, as dr.grad gives them) on a random share ``hit`` of the rows; without
+    ``normals`` none for the normal attribute (normal_source: axis)."""
     rows = rng.random(n) < hit
     g = {"data": rng.normal(size=(n, 10)), "kernel_scales": rng.normal(size=(n, 3)), "opacities": rng.normal(size=n),
          "sh_coeffs": rng.normal(size=(n, k * 3)), "specular": rng.normal(size=n), "transparency": rng.normal(size=n),
@@ -37,6 +38,8 @@ def random_grads(rng, n, k, hit=0.4, nonfinite=0):
     g = {key: (v * (rows if v.ndim == 1 else rows[:, None]) * 1e-3).astype(np.float32) for key, v in g.items()}
     for _ in range(nonfinite):
         g["data"][rng.integers(n), rng.integers(10)] = np.nan
+    if not normals:
+        del g["normals"]
     return g
 
 
@@ -69,14 +72,17 @@ class _Cfg:
     """What Strategy reads for accumulate (nothing) - a stand-in config."""
 
 
-@pytest.mark.parametrize("kernel, selective, zero", [("surfel", True, set()), ("gaussian", True, {"logit_specular"}),
-                                                     ("surfel", False, {"logit_transparency"})])
-def test_device_update_equals_the_host_reference(kernel, selective, zero):
+@pytest.mark.parametrize("kernel, selective, zero, normals", [("surfel", True, set(), True),
+                                                              ("gaussian", True, {"logit_specular"}, True),
+                                                              ("surfel", False, {"logit_transparency"}, True),
+                                                              ("surfel", True, set(), False)])
+def test_device_update_equals_the_host_reference(kernel, selective, zero, normals):
     """Six steps of random sparse gradients (a different 40 % of the rows each step, two NaNs, SH degree 0 then 1,
     a falling position rate): values, moments, step counts and the densification sums equal the host's bit for bit
     on LLVM (the device repeats numpy's float64 / float32 mix operation by operation); elsewhere within float32
     rounding (CUDA's fast-math float32 division and square root): values to 2e-6 of their scale, moments rtol 1e-4.
-    The NaN count is the host's."""
+    The NaN count is the host's. Without a normals gradient (normal_source: axis) neither steps the normals: their
+    values, moments and step counts stay as loaded."""
     rng = np.random.default_rng(3)
     host = random_set(rng)
     n, k = len(host), host.sh.shape[1]
@@ -89,7 +95,7 @@ def test_device_update_equals_the_host_reference(kernel, selective, zero):
     dev.load("interface", gold, s_dev)
     bad = 0
     for it in range(6):
-        grads = random_grads(rng, n, k, nonfinite=2 if it == 2 else 0)
+        grads = random_grads(rng, n, k, nonfinite=2 if it == 2 else 0, normals=normals)
         degree, lr_pos = (0 if it < 3 else 1), 1.0 - 0.1 * it
         bad += host_step(host, grads, a_host, s_host, "interface", kernel, degree, zero, lr_pos)
         device_step(dev, grads, "interface", degree, zero, lr_pos)
@@ -107,6 +113,10 @@ def test_device_update_equals_the_host_reference(kernel, selective, zero):
         np.testing.assert_allclose(m_got, m_ref, rtol=1e-4, atol=1e-12, err_msg=f)
         np.testing.assert_allclose(v_got, v_ref, rtol=1e-4, atol=1e-16, err_msg=f)
     assert not np.array_equal(host.means, random_set(np.random.default_rng(3)).means), "nothing moved"
+    start = random_set(np.random.default_rng(3)).normals
+    for gs, adam in ((host, a_host), (gold, a_dev)):
+        assert np.array_equal(gs.normals, start) != normals, "the normals stepped without a gradient, or not with one"
+        assert np.any(adam.state["interface"]["normals"][2] > 0) == normals
     np.testing.assert_allclose(s_dev.grad_sum["interface"], s_host.grad_sum["interface"], rtol=0 if LLVM else 1e-5)
     np.testing.assert_array_equal(s_dev.count["interface"], s_host.count["interface"])
     assert dev.read_bad()["interface"] == bad > 0

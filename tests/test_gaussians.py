@@ -49,11 +49,8 @@ def test_normals_default_to_the_surfels_axis_and_zero_file_normals_are_derived(t
     refused, naming the field."""
     from plyfile import PlyData, PlyElement
     g = _set(rng, deg=0)
-    q = cv.normalize_quaternions_xyzw(cv.wxyz_to_xyzw(g.quats_wxyz.astype(np.float64)))
-    x, y, z, w = q.T
-    R = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-                  np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-                  np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], 1)
+    q = g.quats_wxyz.astype(np.float64)  # the COLMAP readers' own (w, x, y, z) matrix, an independent reference
+    R = np.stack([cv.qvec_to_rotmat(qi / np.linalg.norm(qi)) for qi in q])
     np.testing.assert_allclose(g.normals, R[:, :, 2], atol=1e-6)
     g.save_ply(tmp_path / "a.ply")
     v = PlyData.read(str(tmp_path / "a.ply"))["vertex"].data.copy()

@@ -11,6 +11,7 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
+from glint_mi import conventions as cv
 from glint_mi.training import losses as L
 from glint_mi.training.batch import patch_neighbours, pixel_rays
 from glint_mi.config import ConfigError, TrainConfig
@@ -256,7 +257,6 @@ def test_an_axis_split_keeps_its_parents_mean_covariance_and_opacity(rng, kernel
     """split_mode: "axis" puts two children along the parent's largest axis (a surfel's largest in-plane axis) so
     that the pair's mixture has the parent's mean and covariance, and each child its opacity and half its
     integrated opacity; "sample" (3DGS) draws them from the parent with scales / 1.6."""
-    from glint_mi.training.strategy import _rotation_matrices
     n = 6
     scales = rng.uniform(0.2, 0.6, size=(n, 3))
     if kernel == "surfel":
@@ -266,7 +266,7 @@ def test_an_axis_split_keeps_its_parents_mean_covariance_and_opacity(rng, kernel
     g = GaussianSet.from_activated(rng.normal(size=(n, 3)), scales, quats_xyzw=quats, opacities=np.linspace(0.1, 0.9, n))
     g.logit_specular[:] = np.arange(n)
     a = g.activated()
-    rot = _rotation_matrices(a["quats_xyzw"])
+    rot = cv.rotation_matrices_xyzw(a["quats_xyzw"])
     plane = a["scales"].copy()
     if kernel == "surfel":
         plane[:, 2] = 0.0

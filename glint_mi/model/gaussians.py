@@ -38,8 +38,7 @@ NORMAL_MIN_LENGTH = 1e-6  # a normal attribute shorter than this has no directio
 def axis_normals(quats_wxyz) -> np.ndarray:
     """The local z axis of each rotation in world space (a surfel's normal): the third column of R(q), q normalised."""
     q = cv.normalize_quaternions_xyzw(cv.wxyz_to_xyzw(np.asarray(quats_wxyz, np.float64).reshape(-1, 4)))
-    x, y, z, w = q.T
-    return np.stack([2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)], axis=1)
+    return cv.rotation_matrices_xyzw(q)[:, :, 2]
 
 
 def unit_normals(normals) -> np.ndarray:

@@ -107,7 +107,8 @@ class DeviceUpdate:
     def gradients(self, role: str, grads: dict, sh_degree, zero: set[str]) -> dict:
         """:func:`glint_mi.training.optim.raw_gradients` on the device (float64, the reference's operations in its
         order), then the SH bands above ``sh_degree`` (an opaque UInt32) and the ``zero`` fields set to 0, and
-        non-finite entries zeroed (counted in the set's ``bad``). Float64 arrays, one per raw field."""
+        non-finite entries zeroed (counted in the set's ``bad``). Float64 arrays, one per raw field (``normals`` only
+        when ``grads`` has them: normal_source attribute)."""
         F64 = mi.Float64
         s = self.sets[role]
         n = s.n
@@ -141,8 +142,6 @@ class DeviceUpdate:
             dot = (nhat[0] * g[0] + nhat[1] * g[1]) + nhat[2] * g[2]
             nj = F64(dr.gather(mi.Float, s.value["normals"], i) / nlen)
             out["normals"] = (gn - nj * dot) / F64(nlen)
-        else:
-            out["normals"] = dr.zeros(F64, n * 3)
         for f, key in (("logit_opacity", "opacities"), ("logit_specular", "specular"),
                        ("logit_transparency", "transparency")):
             p = 1.0 / (1.0 + dr.exp(-F64(s.value[f])))
@@ -153,7 +152,7 @@ class DeviceUpdate:
         for f in zero:
             out[f] = dr.zeros(F64, n * s.cols[f])
         bad = mi.UInt32(0)
-        for f in RAW_FIELDS:
+        for f in out:
             finite = dr.isfinite(out[f])
             bad += mi.UInt32(dr.count(~finite))
             out[f] = dr.select(finite, out[f], 0.0)
@@ -192,6 +191,8 @@ class DeviceUpdate:
             touched = dr.full(mi.Bool, True, s.n)
         scale = lr_scale or {}
         for f in RAW_FIELDS:
+            if f not in g:  # a field the renderer does not read (normals under normal_source: axis): not stepped
+                continue
             c = s.cols[f]
             i = _index(s.n * c)
             row = i // c

@@ -18,7 +18,7 @@ RAW_FIELDS = ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit
 
 def raw_gradients(gset: GaussianSet, grads: dict[str, np.ndarray], kernel: str) -> dict[str, np.ndarray]:
     """Chain rule from the renderer's parameters (``to_mitsuba`` names) to the raw fields of ``gset``. Without a
-    ``normals`` gradient (``normal_source: axis``) the normals get none."""
+    ``normals`` gradient (``normal_source: axis``) the result has no ``normals`` entry, and Adam leaves them be."""
     n = len(gset)
     a = gset.activated()
     data = grads["data"].reshape(n, 10)
@@ -31,15 +31,7 @@ def raw_gradients(gset: GaussianSet, grads: dict[str, np.ndarray], kernel: str) 
     g_q = cv.xyzw_to_wxyz(data[:, 6:10])
     g_q = (g_q - qhat * np.sum(qhat * g_q, axis=1, keepdims=True)) / qn_len
     dsig = lambda p: p * (1.0 - p)
-    if "normals" in grads:  # the renderer reads n / |n|: the gradient's part across the normal, over |n|
-        nv = gset.normals  # float32, as the quaternions' norm above
-        n_len = np.maximum(np.linalg.norm(nv, axis=1, keepdims=True), NORMAL_MIN_LENGTH)
-        nhat = nv / n_len
-        g_n = grads["normals"].reshape(n, 3)
-        g_n = (g_n - nhat * np.sum(nhat * g_n, axis=1, keepdims=True)) / n_len
-    else:
-        g_n = np.zeros((n, 3))
-    return {
+    out = {
         "means": data[:, :3].copy(),
         "log_scales": g_scale,
         "quats_wxyz": g_q,
@@ -47,8 +39,14 @@ def raw_gradients(gset: GaussianSet, grads: dict[str, np.ndarray], kernel: str) 
         "sh": grads["sh_coeffs"].reshape(gset.sh.shape),
         "logit_specular": grads["specular"].reshape(n) * dsig(a["specular"]),
         "logit_transparency": grads["transparency"].reshape(n) * dsig(a["transparency"]),
-        "normals": g_n,
     }
+    if "normals" in grads:  # the renderer reads n / |n|: the gradient's part across the normal, over |n|
+        nv = gset.normals  # float32, as the quaternions' norm above
+        n_len = np.maximum(np.linalg.norm(nv, axis=1, keepdims=True), NORMAL_MIN_LENGTH)
+        nhat = nv / n_len
+        g_n = grads["normals"].reshape(n, 3)
+        out["normals"] = (g_n - nhat * np.sum(nhat * g_n, axis=1, keepdims=True)) / n_len
+    return out
 
 
 class Adam:
@@ -76,7 +74,8 @@ class Adam:
 
     def step(self, role: str, gset: GaussianSet, grads: dict[str, np.ndarray], lr_scale: dict | None = None,
              rows: np.ndarray | None = None) -> None:
-        """One step; ``rows`` (bool [N]) = the Gaussians touched by this batch (selective mode; all if None).
+        """One step; ``rows`` (bool [N]) = the Gaussians touched by this batch (selective mode; all if None). A
+        field missing from ``grads`` is not stepped (its moments and step counts stay as they are).
 
         The touched rows are gathered once per field, updated in those copies and scattered back: the same
         arithmetic as indexing every moment with the mask (bit for bit), a third of the time."""
@@ -88,6 +87,8 @@ class Adam:
         take = (lambda a: a) if full else (lambda a: a[idx])
         scale = lr_scale or {}
         for f in RAW_FIELDS:
+            if f not in grads:  # a field the renderer does not read (normals under normal_source: axis)
+                continue
             m, v, n = st[f]
             if self.NATIVE and self._native_step(f, getattr(gset, f), m, v, n, grads[f], idx, scale):
                 continue
@@ -160,6 +161,8 @@ class Adam:
         if not sel.any():
             return
         for f in RAW_FIELDS:
+            if f not in grads:
+                continue
             g = grads[f][sel]
             m, v, n = st[f]
             n[sel] += 1

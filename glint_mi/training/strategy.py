@@ -178,7 +178,7 @@ class Strategy:
         the parent's largest scale (a surfel's largest in-plane one) and e that axis, whose scale is halved; the
         other scales and the opacity are kept. The pair's mixture then has the parent's mean and covariance (s^2 / 4
         + 3 s^2 / 4 = s^2 along e) and, where the opacities add (low opacity), its integrated opacity (two halves)."""
-        rot = _rotation_matrices(a["quats_xyzw"][split])
+        rot = cv.rotation_matrices_xyzw(a["quats_xyzw"][split])
         sc = a["scales"][split].copy()
         if self.kernel == "surfel":
             sc[:, 2] = 0.0
@@ -227,12 +227,3 @@ class Strategy:
             if key.endswith("/grad_sum"):
                 role = key.split("/")[0]
                 self.grad_sum[role], self.count[role] = v.copy(), arrays[f"{role}/count"].copy()
-
-
-def _rotation_matrices(q_xyzw: np.ndarray) -> np.ndarray:
-    x, y, z, w = q_xyzw.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], 1)
