@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from glint_mi.evaluation import metrics as M
-from glint_mi.config import DEFAULT_VARIANT, VARIANTS
+from glint_mi.config import DEFAULT_VARIANT, PRESETS, VARIANTS
 from glint_mi.methods import METHODS, TABLE_METHODS, config_for
 
 COLUMNS = ("fps", "train_s", "psnr", "normal_mae", "absrel", "ssim", "normal_mae_glass", "absrel_glass", "t_iou",
@@ -292,7 +292,7 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("--data", type=Path, required=True, help="folder of generated scenes")
     ap.add_argument("--make-data", type=int, metavar="N", help="generate N scenes into --data first (if missing)")
-    ap.add_argument("--preset", default="bench", choices=["tiny", "quick", "bench", "gpu"])
+    ap.add_argument("--preset", default="bench", choices=sorted(PRESETS))
     ap.add_argument("--variant", default=DEFAULT_VARIANT, choices=sorted(VARIANTS),
                     help="schedule: glint_mi (default: the supplement's without the refine stage), supplement, release")
     ap.add_argument("--methods", default=",".join(TABLE_METHODS), help=f"comma list of {sorted(METHODS)}")

@@ -672,8 +672,8 @@ def _typed(source: str, key: str, value, kind: type):
     return value
 
 
-# Presets of protocol.md ("tiny" for tests, "quick" for make demo, "bench" for the benchmark), CPU-sized, and "gpu",
-# the paper's budget.
+# Presets of protocol.md ("tiny" for tests, "quick" for make demo, "bench" for the benchmark), CPU-sized, "converged"
+# (a CPU's run to where the methods stop gaining), and "gpu", the paper's budget.
 PRESETS = {
     # Adam moves a logit by about lr per step, so opacity resets and densification intervals are set in iterations
     # that let opacities recover (the paper's 3k / 100 iterations are 5 % / 0.17 % of 60k, far fewer steps here).
@@ -697,6 +697,12 @@ PRESETS = {
                 init_min_points=20000, max_gaussians=500_000, checkpoint_every=5000, log_every=100,
                 densify_every=100 / 60000, reset_every=3000 / 60000, lr_multiplier=1.0, stored_hits_mb=8192.0),
 }
+# converged: the budget and capacity where GLINT and 3dgs stopped gaining on the 48-view rooms 9801-9802 at 96 x 54
+# (< 0.2 dB from doubling either; docs/results/converge_98xx): bench's settings, 60 epochs, densification that lets
+# the sets grow (the densify_top / densify_grad_rel), full-size patches throughout (the coarse start gained
+# nothing there, coarse_to_fine "At 96 x 54 and the converged budget"). ~15 minutes of GLINT a room on one core.
+PRESETS["converged"] = {**PRESETS["bench"], "epochs": 60.0, "densify_top": 0.12, "densify_grad_rel": 0.05,
+                        "coarse_to_fine": ""}
 SUPPLEMENT = dict(warmup=5 / 60, transmission_from=5 / 60, reflection_from=5 / 60, refine_from=40 / 60, tau_n=0.3)
 VARIANTS = {
     # glint_mi (default): the supplement's warm-up and tau_n, but no refine stage (the supplement freezes the

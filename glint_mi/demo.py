@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+from glint_mi.config import PRESETS
+
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "scenes" / "glass_room" / "optimize.xml"
 
@@ -44,7 +46,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", nargs="?", default=str(SCENE), help="optimisation scene XML")
     ap.add_argument("--out", default="out/demo", help="output folder")
-    ap.add_argument("--preset", default="quick", choices=["tiny", "quick", "bench", "gpu"])
+    ap.add_argument("--preset", default="quick", choices=sorted(PRESETS))
     ap.add_argument("--iterations", type=int, help="override the preset's iterations")
     args = ap.parse_args(argv)
 

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from glint_mi.config import DEFAULT_VARIANT, VARIANTS, ConfigError, TrainConfig, flatten
+from glint_mi.config import DEFAULT_VARIANT, PRESETS, VARIANTS, ConfigError, TrainConfig, flatten
 
 
 def parse_sets(items) -> dict:
@@ -93,7 +93,7 @@ def main(argv=None) -> int:
     ap.add_argument("scene", nargs="?", type=Path, help="optimisation scene XML (python -m glint_mi.scene)")
     ap.add_argument("--out", type=Path, help="run folder (default runs/<scene folder name>)")
     ap.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in this folder")
-    ap.add_argument("--preset", choices=["tiny", "quick", "bench", "gpu"], help="size preset (default quick)")
+    ap.add_argument("--preset", choices=sorted(PRESETS), help="size preset (default quick)")
     ap.add_argument("--variant", choices=sorted(VARIANTS),
                     help="schedule: glint_mi (default: the supplement's without the refine stage), supplement, release")
     ap.add_argument("--method", default="glint",

@@ -3,10 +3,13 @@ each, a field is set by its path or bare name, and a run folder's config.json ho
 still load: tests/test_train.py resumes the oldest format)."""
 import dataclasses
 import json
+from pathlib import Path
 
 import pytest
 
 from glint_mi.config import LAYERS, ConfigError, LossConfig, RenderConfig, TrainConfig
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_every_field_is_in_exactly_one_layer():
@@ -75,6 +78,20 @@ def test_fields_by_path():
     for what in (*PRESETS.values(), *VARIANTS.values(), *(m.overrides for m in METHODS.values())):
         assert all(k.split(".")[0] in LAYERS for k in what), what
     assert METHODS["3dgs"].overrides["model.kernel"] == "ellipsoid" and PRESETS["tiny"]["run.iterations"] == 300
+
+
+def test_the_converged_preset_is_the_converged_tables_run():
+    """``--preset converged`` is the command of the converged table's GLINT runs (converge_98xx/flags.sh's BENCH and
+    GROW, 60 epochs, coarse start off): with that table's protocol flags (96 x 54, no SfM depth term) its config is a
+    committed run's config.json in every field but the preset's name and the iterations the epochs resolve to."""
+    from glint_mi.config import TrainConfig
+    from glint_mi.methods import config_for
+
+    run = ROOT / "docs/results/converge_98xx/groups/s51_c9803_base/runs/scene_9803/glint/config.json"
+    saved = TrainConfig.load(run).flat()
+    now = config_for("glint", "converged", downscale=2, w_sfm_depth=0.0, eval_every=1000, threads=1).flat()
+    differ = {k: (saved[k], now[k]) for k in saved if saved[k] != now[k]}
+    assert differ == {"preset": ("bench", "converged"), "iterations": (4253, 4000)}, differ
 
 
 def test_a_config_copied_with_a_change_leaves_the_original_alone():
