@@ -701,8 +701,11 @@ PRESETS = {
 # (< 0.2 dB from doubling either; docs/results/converge_98xx): bench's settings, 60 epochs, densification that lets
 # the sets grow (the issue's densify_top / densify_grad_rel), full-size patches throughout (the coarse start gained
 # nothing there, coarse_to_fine "At 96 x 54 and the converged budget"). ~15 minutes of GLINT a room on one core.
+# GLINT's kernel there is 3DGS's ellipsoid: surfels' cost grows with the budget (on 9803 they cost 3DGS 0.97 dB at
+# this point, 0.28 at bench's); decided on the tuning rooms at this point (geometry rule: AbsRel -7 %, +0.10 dB),
+# checked on 9801-9803 (coarse_to_fine, "Ellipsoids at the converged point"); surfel methods keep theirs (SURFELS)
 PRESETS["converged"] = {**PRESETS["bench"], "epochs": 60.0, "densify_top": 0.12, "densify_grad_rel": 0.05,
-                        "coarse_to_fine": ""}
+                        "coarse_to_fine": "", "kernel": "ellipsoid"}
 SUPPLEMENT = dict(warmup=5 / 60, transmission_from=5 / 60, reflection_from=5 / 60, refine_from=40 / 60, tau_n=0.3)
 VARIANTS = {
     # glint_mi (default): the supplement's warm-up and tau_n, but no refine stage (the supplement freezes the

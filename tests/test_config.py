@@ -87,11 +87,25 @@ def test_the_converged_preset_is_the_converged_tables_run():
     from glint_mi.config import TrainConfig
     from glint_mi.methods import config_for
 
-    run = ROOT / "docs/results/converge_98xx/groups/s51_c9803_base/runs/scene_9803/glint/config.json"
+    run = ROOT / "docs/results/converge_98xx/groups/s51_c9803_el/runs/scene_9803/glint/config.json"
     saved = TrainConfig.load(run).flat()
     now = config_for("glint", "converged", downscale=2, w_sfm_depth=0.0, eval_every=1000, threads=1).flat()
     differ = {k: (saved[k], now[k]) for k in saved if saved[k] != now[k]}
     assert differ == {"preset": ("bench", "converged"), "iterations": (4253, 4000)}, differ
+
+
+def test_a_preset_changes_no_methods_kernel_but_glints():
+    """The converged preset gives GLINT (and its ablations) 3DGS's ellipsoids; every surfel method keeps surfels and
+    3DGS its ellipsoids under every preset."""
+    from glint_mi.config import PRESETS
+    from glint_mi.methods import METHODS, config_for
+
+    surfels = ("2dgs", "2dgs-priors", "pgsr", "envgs", "refgs", "tsgs", "glint-paper")
+    for preset in PRESETS:
+        for name in METHODS:
+            want = ("surfel" if name in surfels else "ellipsoid" if name.startswith("3dgs") or preset == "converged"
+                    else "surfel")
+            assert config_for(name, preset).kernel == want, (preset, name)
 
 
 def test_a_config_copied_with_a_change_leaves_the_original_alone():
