@@ -18,7 +18,7 @@ ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no s
 # preset's clones that share their parent's coverage are no baseline's (3DGS's clone copies the opacity, its split
 # draws the children from the parent)
 NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform", prior_decay=1.0, clone_opacity="copy", split_mode="sample")
-SURFELS = dict(kernel="surfel")  # 2DGS, PGSR, EnvGS, Ref-GS, TSGS and GLINT's release are surfels, whatever a preset says
+SURFELS = dict(kernel="surfel")  # 2DGS, PGSR, EnvGS, Ref-GS, TSGS, GLINT's release: surfels, whatever the preset
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
 _GLINT = LossConfig()  # GLINT's defaults, read here so that the parity rows cannot drift from them
 GLINT_PHOTO = dict(w_l1=_GLINT.w_l1, w_dssim=_GLINT.w_dssim)  # GLINT's photometric weights
@@ -43,9 +43,9 @@ METHOD_3DGS = dict(**NOT_OURS, components="interface", kernel="ellipsoid", **ALP
 # 2DGS (its release): normal consistency 0.05 on the median depth (depth_ratio 1) from 7k of 30k iterations, depth
 # distortion from 3k; lambda_dist 10 is what its Tanks and Temples script gives indoor "large scenes" (Meetingroom;
 # 100 for 360-degree objects, 1000 for DTU)
-METHOD_2DGS = dict(**NOT_OURS, **SURFELS, components="interface", **ALPHA, w_consistency=0.05, consistency_depth="median",
-                   consistency_from=7 / 30, w_dist=10.0, dist_from=3 / 30, eval_depth="median", **NO_PRIORS,
-                   **NO_GLASS, **PLAIN_PHOTO)
+METHOD_2DGS = dict(**NOT_OURS, **SURFELS, components="interface", **ALPHA, w_consistency=0.05,
+                   consistency_depth="median", consistency_from=7 / 30, w_dist=10.0, dist_from=3 / 30,
+                   eval_depth="median", **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,20 +75,22 @@ METHODS = {m.name: m for m in [
            "ray-traced surfels (k-buffer, shell-entry order) instead of tile rasterisation; the distortion maps the "
            "distance along the ray, not the camera-space z, to NDC (the same within a ray up to the cosine to the "
            "axis); no low-pass screen-space filter"),
-    Method("pgsr", dict(**NOT_OURS, **SURFELS, components="interface", **ALPHA, w_consistency=0.3, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
+    Method("pgsr", dict(**NOT_OURS, **SURFELS, components="interface", **ALPHA, w_consistency=0.3, **NO_PRIORS,
+                        **NO_GLASS, **PLAIN_PHOTO),
            "planar surfels + single-view depth-normal consistency",
            "PGSR's multi-view geometric and photometric consistency terms are NOT implemented (they need pairs of "
            "rendered views per step); only the single-view part, with a higher weight"),
-    Method("envgs", dict(**NOT_OURS, **SURFELS, components="interface,reflection", blend="envgs", **NORMAL_PRIOR, **NO_GLASS,
-                         **PLAIN_PHOTO, refine_from=1.0),
+    Method("envgs", dict(**NOT_OURS, **SURFELS, components="interface,reflection", blend="envgs", **NORMAL_PRIOR,
+                         **NO_GLASS, **PLAIN_PHOTO, refine_from=1.0),
            "interface + reflection set, C = (1 - beta) c_base + beta c_env, no Fresnel, no transmission; the "
            "monocular normal prior its paper uses (the dataset's, as GLINT gets it)",
            "the environment set is traced from the interface's expected depth like GLINT's (same as EnvGS); "
            "ray-traced surfels"),
     # Ref-GS (its release): 2DGS surfels, normal consistency 0.05 on the expected depth (depth_ratio 0) from the
     # start, no depth distortion, L1 / D-SSIM 0.8 / 0.2, no priors; appearance deferred to the pixel
-    Method("refgs", dict(**NOT_OURS, **SURFELS, components="interface", blend="refgs", sh_degree=0, w_consistency=0.05,
-                         consistency_from=0.0, lr_specular=0.002, **NO_PRIORS, **NO_GLASS, **PLAIN_PHOTO),
+    Method("refgs", dict(**NOT_OURS, **SURFELS, components="interface", blend="refgs", sh_degree=0,
+                         w_consistency=0.05, consistency_from=0.0, lr_specular=0.002, **NO_PRIORS, **NO_GLASS,
+                         **PLAIN_PHOTO),
            "surfels with Ref-GS's deferred directional shading: C = srgb(albedo + s), s read from a mip-mapped "
            "latitude-longitude grid at the reflected direction of the composited normal, blurred by the composited "
            "roughness (its weights and schedule: normal consistency 0.05 from the start, no distortion, no priors)",
@@ -99,8 +101,9 @@ METHODS = {m.name: m for m in [
            "the SfM colours, and at this CPU budget a bright start costs 7 dB on the tuning room); the albedo is SH "
            "degree 0 from those colours and the roughness is the interface's beta (same sigmoid, starts at 0.5, "
            "Ref-GS's roughness lr 0.002); black background; ray-traced surfels"),
-    Method("tsgs", dict(**NOT_OURS, **SURFELS, components="interface,transmission", trans_masks="prior", w_plausibility=0.0,
-                        t_raise="free", eval_depth="first_surface", prior_layer="interface", **NORMAL_PRIOR),
+    Method("tsgs", dict(**NOT_OURS, **SURFELS, components="interface,transmission", trans_masks="prior",
+                        w_plausibility=0.0, t_raise="free", eval_depth="first_surface", prior_layer="interface",
+                        **NORMAL_PRIOR),
            "surfels with a transparency attribute supervised by transparent masks, and the monocular normal prior",
            "masks from priors/glass/ (a segmentation model's, as TSGS uses Grounded-SAM; for generated rooms derived "
            "from ground truth with a segmenter's errors: ragged edges, missed panes, false blobs); its first-surface "
