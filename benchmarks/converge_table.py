@@ -7,7 +7,8 @@ method's curve uses the ``--curve-rooms`` it has at every point, seed 0. A metho
 smallest (epochs, capacity) whose mean PSNR is within ``--tol`` dB (0.2) of the next doubling of the epochs and of
 the next capacity level, where those were run; a point flat in epochs whose next capacity was not run is taken
 as undecided in capacity; if every doubling run still gains, it says so and takes the best point.
-The converged table then gives each method at its point over every room and seed found there.
+The converged table then gives each method at its point over every room and seed found there. ``--only
+METHOD=FOLDER,...`` reads a method from those folders alone (its runs elsewhere, e.g. at a former default, left out).
 
     .venv/bin/python benchmarks/converge_table.py 60:grow=E60 120:grow=E120A,E120B 240:grow=E240 120:default=D120 \\
         --curve-rooms scene_9801,scene_9802 --out docs/results/converge_98xx
@@ -64,7 +65,27 @@ def read_runs(folder: Path) -> list[dict]:
     return out
 
 
-def gather(specs: list[str]) -> list[dict]:
+def parse_only(specs: list[str]) -> dict[str, set[Path]]:
+    """``--only METHOD=FOLDER[,FOLDER...]`` (repeatable) -> {method: resolved folders}."""
+    only: dict[str, set[Path]] = {}
+    for spec in specs:
+        method, _, folders = spec.partition("=")
+        if not method or not folders:
+            raise SystemExit(f"error: --only {spec!r}: give METHOD=FOLDER[,FOLDER...]")
+        only.setdefault(method, set()).update(Path(f).resolve() for f in folders.split(","))
+    return only
+
+
+def gather(specs: list[str], only: dict[str, set[Path]] | None = None) -> list[dict]:
+    """Every run of the specs' folders with its point; ``only`` ({method: folders}) takes a method's runs from those
+    folders alone (e.g. GLINT's current default, its runs of a former default in the same folders left out). A
+    folder named in ``only`` but in no spec is refused: its runs would be silently missing."""
+    only = only or {}
+    named = {Path(f).resolve() for spec in specs for f in spec.partition("=")[2].split(",") if f}
+    for m, fs in only.items():
+        if fs - named:
+            raise SystemExit(f"error: --only {m}: {', '.join(sorted(map(str, fs - named)))} is in no "
+                             f"EPOCHS:CAPACITY=FOLDER spec; add it to the point its runs belong to")
     rows, seen = [], set()
     for spec in specs:
         point, _, folders = spec.partition("=")
@@ -73,6 +94,8 @@ def gather(specs: list[str]) -> list[dict]:
             raise SystemExit(f"error: {spec!r}: give EPOCHS:CAPACITY=FOLDER[,FOLDER...]")
         for folder in folders.split(","):
             for r in read_runs(Path(folder)):
+                if r["method"] in only and Path(folder).resolve() not in only[r["method"]]:
+                    continue
                 key = (float(epochs), cap, r["method"], r["scene"], r["seed"])
                 if key not in seen:  # a run found twice is taken from the first folder
                     seen.add(key)
@@ -179,9 +202,12 @@ def main() -> None:
     ap.add_argument("--tol", type=float, default=0.2)
     ap.add_argument("--priors", type=Path, help="a benchmark folder with the `priors` row (the prior maps scored): "
                                                 "the table gains it, and GLINT's normals and AbsRel against it")
+    ap.add_argument("--only", action="append", default=[], metavar="METHOD=FOLDER[,FOLDER...]",
+                    help="take METHOD's runs from these folders alone (repeatable): e.g. GLINT at today's preset "
+                         "when the other folders also hold its runs at a former one")
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
-    rows = gather(args.specs)
+    rows = gather(args.specs, parse_only(args.only))
     methods = [m for m in args.methods.split(",") if any(r["method"] == m for r in rows)]
     caps = args.capacities.split(",")
     rooms = set(args.curve_rooms.split(",")) if args.curve_rooms else {r["scene"] for r in rows}

@@ -296,6 +296,36 @@ def test_converge_table_finds_where_each_method_stopped_gaining():
     assert (e, c) == (120, "wide") and why.startswith("still gaining at every point")
 
 
+def test_converge_table_only_reads_a_method_from_its_folders(tmp_path):
+    """converge_table.gather with --only: GLINT's runs come from the named folders alone (its runs at a former default
+    in the shared folders are left out, every other method's kept); a folder named in --only but in no spec is
+    refused rather than silently missing."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import converge_table
+
+    def run(folder, scene, method, psnr):
+        d = tmp_path / folder / "runs" / scene / method
+        d.mkdir(parents=True)
+        (d / "metrics.json").write_text(json.dumps({"metrics": {"psnr": psnr}}))
+
+    run("old", "r1", "glint", 30.0)
+    run("old", "r1", "3dgs", 31.0)
+    run("old", "r2", "glint", 29.0)
+    run("new", "r1", "glint", 32.0)
+    run("old120", "r1", "glint", 28.0)
+    specs = [f"60:grow={tmp_path / 'new'},{tmp_path / 'old'}", f"120:grow={tmp_path / 'old120'}"]
+    got = sorted((r["epochs"], r["method"], r["scene"], r["psnr"]) for r in converge_table.gather(specs))
+    assert got == [(60.0, "3dgs", "r1", 31.0), (60.0, "glint", "r1", 32.0), (60.0, "glint", "r2", 29.0),
+                   (120.0, "glint", "r1", 28.0)]
+    only = converge_table.parse_only([f"glint={tmp_path / 'new'}"])
+    got = sorted((r["epochs"], r["method"], r["scene"], r["psnr"]) for r in converge_table.gather(specs, only))
+    assert got == [(60.0, "3dgs", "r1", 31.0), (60.0, "glint", "r1", 32.0)]
+    with pytest.raises(SystemExit, match="in no EPOCHS:CAPACITY"):
+        converge_table.gather(specs, converge_table.parse_only([f"glint={tmp_path / 'elsewhere'}"]))
+    with pytest.raises(SystemExit, match="METHOD=FOLDER"):
+        converge_table.parse_only(["glint"])
+
+
 def test_converge_table_compares_glint_seed_by_seed():
     """converge_table.compare pairs GLINT with a method on (room, seed), gives the difference by seed and its paired
     standard error; seed_spread is how far a room moves with the seed alone. Hand-computed figures."""
