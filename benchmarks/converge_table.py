@@ -93,8 +93,9 @@ def gather(specs: list[str], only: dict[str, set[Path]] | None = None) -> list[d
         if not folders or not cap:
             raise SystemExit(f"error: {spec!r}: give EPOCHS:CAPACITY=FOLDER[,FOLDER...]")
         for folder in folders.split(","):
+            here = Path(folder).resolve()
             for r in read_runs(Path(folder)):
-                if r["method"] in only and Path(folder).resolve() not in only[r["method"]]:
+                if r["method"] in only and here not in only[r["method"]]:
                     continue
                 key = (float(epochs), cap, r["method"], r["scene"], r["seed"])
                 if key not in seen:  # a run found twice is taken from the first folder

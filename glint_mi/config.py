@@ -697,12 +697,14 @@ PRESETS = {
                 init_min_points=20000, max_gaussians=500_000, checkpoint_every=5000, log_every=100,
                 densify_every=100 / 60000, reset_every=3000 / 60000, lr_multiplier=1.0, stored_hits_mb=8192.0),
 }
-# converged: the budget and capacity where GLINT and 3dgs stopped gaining on the 48-view rooms 9801-9802 at 96 x 54
-# (< 0.2 dB from doubling either; docs/results/converge_98xx): bench's settings, 60 epochs, densification that lets
+# converged: the budget and capacity where 3dgs and GLINT with surfels stopped gaining on the 48-view rooms 9801-9802
+# at 96 x 54 (< 0.2 dB from doubling either; docs/results/converge_98xx): bench's settings, 60 epochs, densification that lets
 # the sets grow (the issue's densify_top / densify_grad_rel), full-size patches throughout (the coarse start gained
 # nothing there, coarse_to_fine "At 96 x 54 and the converged budget"). ~15 minutes of GLINT a 96 x 54 room on one
-# core (epochs are rays per pixel: 4x that at 192 x 108). Whether GLINT with ellipsoids stops gaining at 60 epochs
-# too is not measured (the point was found with surfels).
+# core (epochs are rays per pixel: 4x that at 192 x 108). GLINT with ellipsoids is flat in epochs there (120: +0.14
+# dB on 9801-9802) but not in capacity (densify_top 0.25 / densify_grad_rel 0.02: +0.32 there, +0.61 on the tuning
+# rooms; converge_98xx "The converged table's GLINT rows with --preset converged"): a candidate not yet checked on
+# all four rooms at two seeds, so not here.
 # GLINT's kernel there is 3DGS's ellipsoid: surfels' cost grows with the budget (on 9803 they cost 3DGS 0.97 dB at
 # this point, 0.28 at bench's); decided on the tuning rooms at this point (geometry rule: AbsRel -7 %, +0.10 dB),
 # checked on 9801-9803 (coarse_to_fine, "Ellipsoids at the converged point"); surfel methods keep theirs (SURFELS)
