@@ -111,7 +111,7 @@ def run_one(method: str, scene_dir: Path, run: Path, preset: str, variant: str, 
         xml = run / "scene.xml"
         xml.write_text(scene_xml(scene_dir, missing=missing))
         trainer = Trainer(run, cfg, scene=read_scene(xml), log=log)
-    (run / "method.json").write_text(json.dumps({"method": method, "overrides": METHODS[method].overrides,
+    (run / "method.json").write_text(json.dumps({"method": method, "overrides": METHODS[method].overrides_for(preset),
                                                  "differs": METHODS[method].differs}, indent=1))
     res = train_unless_done(trainer)
     out = evaluate(trainer.integ_for_eval(), trainer.eval_views(), run, res["train_s"], **trainer.eval_options())

@@ -19,6 +19,13 @@ ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no s
 # draws the children from the parent)
 NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform", prior_decay=1.0, clone_opacity="copy", split_mode="sample")
 SURFELS = dict(kernel="surfel")  # 2DGS, PGSR, EnvGS, Ref-GS, TSGS, GLINT's release: surfels, whatever the preset
+# At the converged preset every baseline keeps growth (densify_top 0.12, densify_grad_rel 0.05), where 3dgs, tsgs,
+# glint-paper and 3dgs-priors stopped gaining on 9801-9802 (docs/results/converge_98xx; with the preset's wider
+# capacity, GLINT's, 3dgs lost 0.28 dB and tsgs 0.26; 2dgs, pgsr, envgs and refgs were not measured there and take
+# 3dgs's), and glint-paper its budget there (120 epochs: +0.47 dB over 60)
+GROWTH = dict(densify_top=0.12, densify_grad_rel=0.05)
+BASELINE_AT = {"converged": GROWTH}
+PAPER_AT = {"converged": {**GROWTH, "epochs": 120.0}}
 NORMAL_PRIOR = dict(w_depth=0.0)  # the normal prior only (EnvGS, TSGS use monocular normals, no depth prior)
 _GLINT = LossConfig()  # GLINT's defaults, read here so that the parity rows cannot drift from them
 GLINT_PHOTO = dict(w_l1=_GLINT.w_l1, w_dssim=_GLINT.w_dssim)  # GLINT's photometric weights
@@ -56,36 +63,46 @@ class Method:
     overrides: dict
     what: str
     differs: str = ""
+    at: dict = dataclasses.field(default_factory=dict)  # {preset: overrides on top of ``overrides`` there}
 
     def __post_init__(self):
-        from glint_mi.config import TrainConfig, by_path
+        from glint_mi.config import PRESETS, ConfigError, TrainConfig, by_path
 
         TrainConfig.from_dict(self.overrides, source=f"method '{self.name}'")  # raises ConfigError, naming the key
+        for preset, values in self.at.items():
+            if preset not in PRESETS:
+                raise ConfigError(f"method '{self.name}': 'at' names preset '{preset}'; use one of {sorted(PRESETS)}.")
+            TrainConfig.from_dict({**self.overrides, **values}, source=f"method '{self.name}' at preset '{preset}'")
         object.__setattr__(self, "overrides", by_path(self.overrides))  # what it overrides, by path (layer.field)
+        object.__setattr__(self, "at", {p: by_path(v) for p, v in self.at.items()})
+
+    def overrides_for(self, preset: str) -> dict:
+        """What the method overrides under ``preset``, by path: its own fields, then that preset's ``at`` entry."""
+        return {**self.overrides, **self.at.get(preset, {})}
 
 
 METHODS = {m.name: m for m in [
     Method("3dgs", METHOD_3DGS,
            "one set of 3D Gaussians, plain alpha compositing (3DGRT-style ray tracing)",
            "ray-traced at the 3DGRT peak instead of rasterised; 3DGS's screen-space densification threshold replaced "
-           "by our top-fraction rule"),
+           "by our top-fraction rule", at=BASELINE_AT),
     Method("2dgs", METHOD_2DGS,
            "one set of surfels + depth-normal consistency on the median depth + depth distortion (2DGS's weights "
            "and schedule; lambda_dist 10, its value for indoor large scenes); reports the median depth",
            "ray-traced surfels (k-buffer, shell-entry order) instead of tile rasterisation; the distortion maps the "
            "distance along the ray, not the camera-space z, to NDC (the same within a ray up to the cosine to the "
-           "axis); no low-pass screen-space filter"),
+           "axis); no low-pass screen-space filter", at=BASELINE_AT),
     Method("pgsr", dict(**NOT_OURS, **SURFELS, components="interface", **ALPHA, w_consistency=0.3, **NO_PRIORS,
                         **NO_GLASS, **PLAIN_PHOTO),
            "planar surfels + single-view depth-normal consistency",
            "PGSR's multi-view geometric and photometric consistency terms are NOT implemented (they need pairs of "
-           "rendered views per step); only the single-view part, with a higher weight"),
+           "rendered views per step); only the single-view part, with a higher weight", at=BASELINE_AT),
     Method("envgs", dict(**NOT_OURS, **SURFELS, components="interface,reflection", blend="envgs", **NORMAL_PRIOR,
                          **NO_GLASS, **PLAIN_PHOTO, refine_from=1.0),
            "interface + reflection set, C = (1 - beta) c_base + beta c_env, no Fresnel, no transmission; the "
            "monocular normal prior its paper uses (the dataset's, as GLINT gets it)",
            "the environment set is traced from the interface's expected depth like GLINT's (same as EnvGS); "
-           "ray-traced surfels"),
+           "ray-traced surfels", at=BASELINE_AT),
     # Ref-GS (its release): 2DGS surfels, normal consistency 0.05 on the expected depth (depth_ratio 0) from the
     # start, no depth distortion, L1 / D-SSIM 0.8 / 0.2, no priors; appearance deferred to the pixel
     Method("refgs", dict(**NOT_OURS, **SURFELS, components="interface", blend="refgs", sh_degree=0,
@@ -100,7 +117,7 @@ METHODS = {m.name: m for m in [
            "starts at 0.001 (env_init; Ref-GS's MLP starts near 0.25 over an albedo of 0.2; here the albedo starts at "
            "the SfM colours, and at this CPU budget a bright start costs 7 dB on the tuning room); the albedo is SH "
            "degree 0 from those colours and the roughness is the interface's beta (same sigmoid, starts at 0.5, "
-           "Ref-GS's roughness lr 0.002); black background; ray-traced surfels"),
+           "Ref-GS's roughness lr 0.002); black background; ray-traced surfels", at=BASELINE_AT),
     Method("tsgs", dict(**NOT_OURS, **SURFELS, components="interface,transmission", trans_masks="prior",
                         w_plausibility=0.0, t_raise="free", eval_depth="first_surface", prior_layer="interface",
                         **NORMAL_PRIOR),
@@ -109,22 +126,23 @@ METHODS = {m.name: m for m in [
            "from ground truth with a segmenter's errors: ragged edges, missed panes, false blobs); its first-surface "
            "depth as its release renders it (densest 0.03 m window in the first 20 % of weight where the mask says "
            "transparent, the median depth elsewhere); what is seen through glass comes from a transmission set, "
-           "not from TSGS's single set; no multi-view NCC/geometric terms (as PGSR here)"),
+           "not from TSGS's single set; no multi-view NCC/geometric terms (as PGSR here)", at=BASELINE_AT),
     Method("glint", {}, "all three sets, Fresnel first-order transport, L_trans (glint_mi's defaults)"),
     Method("glint-paper", PAPER,
            "GLINT with the paper's choices: per-image depth fit over the whole image (MonoSDF), the supplement's "
            "normal loss (1 - cos, unmasked before 10k/60k), t free, the paper's L_trans masks, all three sets, the "
            "interface frozen from 40k/60k (the supplement's refine stage), the normal prior and the consistency "
            "weighted by the release's near-to-far depth scale (normal_weight: near; since 2026-11-27)",
-           "the whole-image depth fit is refitted every 2 % of the run on a grid of <= 2048 pixels per view"),
+           "the whole-image depth fit is refitted every 2 % of the run on a grid of <= 2048 pixels per view",
+           at=PAPER_AT),
     Method("3dgs-priors", {**METHOD_3DGS, **WITH_PRIORS},
            "3DGS given the same depth and normal priors as GLINT (GLINT's terms, prior weights and their schedule, "
            "photometric weights)",
            "prior parity row: GLINT's photometric weights 1.2 / 0.4 instead of 3DGS's 0.8 / 0.2 (until 2026-11-26 "
-           "the parity rows kept 0.8 / 0.2)"),
+           "the parity rows kept 0.8 / 0.2)", at=BASELINE_AT),
     Method("2dgs-priors", {**METHOD_2DGS, **WITH_PRIORS},
            "2DGS given the same depth and normal priors as GLINT (GLINT's terms, prior and photometric weights)",
-           "prior parity row: GLINT's photometric weights 1.2 / 0.4 instead of 2DGS's 0.8 / 0.2"),
+           "prior parity row: GLINT's photometric weights 1.2 / 0.4 instead of 2DGS's 0.8 / 0.2", at=BASELINE_AT),
     # ablations of the supplement
     Method("glint-no-trans", dict(components="interface,reflection"), "GLINT without the transmission set"),
     Method("glint-no-refl", dict(components="interface,transmission"), "GLINT without the reflection set"),
@@ -152,4 +170,4 @@ def config_for(method: str, preset: str, variant: str | None = None, **extra):
     if method not in METHODS:
         raise ConfigError(f"unknown method '{method}'; use one of {sorted(METHODS)}.")
     return TrainConfig.for_preset(preset, variant or DEFAULT_VARIANT,
-                                  **{**flatten(METHODS[method].overrides), **flatten(extra)})
+                                  **{**flatten(METHODS[method].overrides_for(preset)), **flatten(extra)})

@@ -84,6 +84,9 @@ def build_config(args, scene_settings: dict | None = None, scene_path=None, note
         fixed[key] = flag or given
     preset = fixed["preset"] or "quick"
     variant = fixed["variant"] or DEFAULT_VARIANT
+    for k, v in flatten(METHODS[method].at.get(preset, {})).items():  # the method's fields at this preset: over its
+        if k not in values or where[k] == f"method {method}":        # own, under --config and the command line
+            values[k], where[k] = v, f"method {method} at preset {preset}"
     return config_for("glint", preset, variant, **values)
 
 

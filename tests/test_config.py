@@ -1,6 +1,7 @@
 """The configuration's layers (issues 45, 64): every field in exactly one layer, TrainConfig holds one instance of
 each, a field is set by its path or bare name, and a run folder's config.json holds the layers as objects (flat ones
 still load: tests/test_train.py resumes the oldest format)."""
+import argparse
 import dataclasses
 import json
 from pathlib import Path
@@ -81,17 +82,56 @@ def test_fields_by_path():
 
 
 def test_the_converged_preset_is_the_converged_tables_run():
-    """``--preset converged`` is the command of the converged table's GLINT runs (converge_98xx/flags.sh's BENCH and
-    GROW, 60 epochs, coarse start off): with that table's protocol flags (96 x 54, no SfM depth term) its config is a
-    committed run's config.json in every field but the preset's name and the iterations the epochs resolve to."""
+    """``--preset converged`` is the command of the converged table's GLINT runs (converge_98xx/s52.sh with its
+    capacity `wide`): with that table's protocol flags (96 x 54, no SfM depth term) its config is a committed run's
+    config.json in every field but the iterations the epochs resolve to; each baseline's is its own point's run
+    (growth; glint-paper at 120 epochs) in every field but those the converged preset and its migrations name."""
     from glint_mi.config import TrainConfig
     from glint_mi.methods import config_for
 
-    run = ROOT / "docs/results/converge_98xx/groups/s51_c9803_el/runs/scene_9803/glint/config.json"
-    saved = TrainConfig.load(run).flat()
-    now = config_for("glint", "converged", downscale=2, w_sfm_depth=0.0, eval_every=1000, threads=1).flat()
+    groups = ROOT / "docs/results/converge_98xx/groups"
+    protocol = dict(downscale=2, w_sfm_depth=0.0, eval_every=1000, threads=1)
+    saved = TrainConfig.load(groups / "s52_el60_wide/runs/scene_9801/glint/config.json").flat()
+    now = config_for("glint", "converged", **protocol).flat()
     differ = {k: (saved[k], now[k]) for k in saved if saved[k] != now[k]}
-    assert differ == {"preset": ("bench", "converged"), "iterations": (4253, 4000)}, differ
+    assert differ == {"iterations": (4253, 4000)}, differ
+    # the table's baselines ran --preset bench with the growth flags, before the coarse start and the clones'
+    # coverage existed (read back as "" and copy, config.MIGRATIONS): the preset's name and iterations differ, and
+    # the falling normal prior's floor, which a constant prior (prior_decay 1) never reads; 3dgs-priors has followed
+    # GLINT's falling prior since those runs (methods.WITH_PRIORS)
+    for method, run, since in (("3dgs", "e60_grow", {}), ("tsgs", "e60_grow", {}),
+                               ("3dgs-priors", "e60_grow", {"prior_decay": (1.0, 0.5)}),
+                               ("glint-paper", "e120_grow_c", {})):
+        saved = TrainConfig.load(groups / run / f"runs/scene_9802/{method}/config.json").flat()
+        now = config_for(method, "converged", **protocol).flat()
+        differ = {k: (saved[k], now[k]) for k in saved if saved[k] != now[k]}
+        assert saved["prior_decay"] == 1.0 and differ.pop("prior_decay_ref") == (0.0, 8.0), method
+        assert differ == {"preset": ("bench", "converged"), "iterations": (saved["iterations"], now["iterations"]),
+                          **since}, (method, differ)
+
+
+def test_a_method_at_a_preset_is_checked_and_reaches_every_path():
+    """A method's ``at`` entry (its fields under one preset) is validated when the method is defined, reaches
+    config_for and the optimize CLI under that preset only, and yields to --set."""
+    from glint_mi.config import ConfigError
+    from glint_mi.methods import METHODS, Method, config_for
+    from glint_mi.optimize import build_config
+
+    with pytest.raises(ConfigError, match="'at' names preset 'nope'"):
+        Method("x", {}, "x", at={"nope": {"epochs": 1.0}})
+    with pytest.raises(ConfigError, match="densify_top"):
+        Method("x", {}, "x", at={"converged": {"densify_top": -1.0}})
+    assert config_for("3dgs", "converged").densify_top == 0.12 and config_for("glint", "converged").densify_top == 0.25
+    assert config_for("3dgs", "bench").densify_top == config_for("glint", "bench").densify_top
+    assert config_for("glint-paper", "converged").epochs == 120.0 and config_for("glint-paper", "bench").epochs == 10.0
+    assert METHODS["glint-no-trans"].at == {} and config_for("glint-no-trans", "converged").densify_top == 0.25
+    assert config_for("3dgs", "converged", densify_top=0.3).densify_top == 0.3
+    args = lambda **kw: argparse.Namespace(**{**dict(config=None, iterations=None, seed=None, set=[],
+                                                     preset="converged", variant=None, method="3dgs"), **kw})
+    assert build_config(args()).densify_top == 0.12 and build_config(args(method="glint")).densify_top == 0.25
+    assert build_config(args(preset="bench")).densify_top == build_config(args(preset="bench", method="glint")).densify_top
+    assert build_config(args(set=["densify_top=0.3"])).densify_top == 0.3
+    assert build_config(args(method="glint-paper")).epochs == 120.0
 
 
 def test_a_preset_changes_no_methods_kernel_but_glints():

@@ -1471,7 +1471,8 @@ def test_the_strategy_owns_its_schedule():
 def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     """A run whose config.json predates every migration (no epochs, train_downsample, trans_cue 'sfm', no relative
     floor, no prior_layer, a fresnel boolean, the albedo read with the cue's former settings, no floor for a falling
-    normal prior) resumes and trains on, read as it trained (config.migrate)."""
+    normal prior, no coarse start or clone coverage options) resumes and trains on, read as it trained
+    (config.migrate)."""
     from glint_mi.config import MIGRATIONS
 
     run = tmp_path / "old"
@@ -1482,16 +1483,17 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     del tr
     saved = TrainConfig.load(run / "config.json").flat()  # as runs before 2026-11-28 saved it: flat
     for k in ("epochs", "densify_grad_rel", "prior_layer", "blend", "downscale", "eval_full", "trans_albedo",
-              "cue_votes", "cue_margin", "normal_loss", "normal_early", "prior_decay_ref"):
+              "cue_votes", "cue_margin", "normal_loss", "normal_early", "prior_decay_ref", "coarse_to_fine",
+              "clone_opacity"):
         saved.pop(k)
     saved.update(train_downsample=1, trans_cue="sfm", fresnel=True, densify_grad=2e-4)  # 2e-4: the old default
     (run / "config.json").write_text(json.dumps(saved))
     cfg = TrainConfig.load(run / "config.json")
     assert (cfg.epochs, cfg.downscale, cfg.trans_cue, cfg.densify_grad_rel, cfg.densify_grad, cfg.prior_layer,
             cfg.blend, cfg.trans_albedo, cfg.cue_votes, cfg.cue_margin, cfg.normal_loss, cfg.normal_early,
-            cfg.prior_decay_ref) == \
-        (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05, "l1_cos", "off", 0.0)
-    assert len(MIGRATIONS) == 8
+            cfg.prior_decay_ref, cfg.coarse_to_fine, cfg.clone_opacity) == \
+        (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05, "l1_cos", "off", 0.0, "", "copy")
+    assert len(MIGRATIONS) == 10
     again = Trainer(run, cfg, resume=True, log=lambda *a: None)
     assert again.it == 2
     again.train(progress=False)
