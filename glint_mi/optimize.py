@@ -87,6 +87,8 @@ def build_config(args, scene_settings: dict | None = None, scene_path=None, note
     for k, v in flatten(METHODS[method].at.get(preset, {})).items():  # the method's fields at this preset: over its
         if k not in values or where[k] == f"method {method}":        # own, under --config and the command line
             values[k], where[k] = v, f"method {method} at preset {preset}"
+        elif values[k] != v and k != "epochs":  # said, as any override of a method's field is
+            note(f"{where[k]} sets {k} = {values[k]!r} over method {method} at preset {preset}'s {v!r}")
     return config_for("glint", preset, variant, **values)
 
 

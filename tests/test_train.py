@@ -1487,6 +1487,7 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
               "clone_opacity"):
         saved.pop(k)
     saved.update(train_downsample=1, trans_cue="sfm", fresnel=True, densify_grad=2e-4)  # 2e-4: the old default
+    saved["preset"] = "bench"  # whose coarse start and shared clones an old run must not read back
     (run / "config.json").write_text(json.dumps(saved))
     cfg = TrainConfig.load(run / "config.json")
     assert (cfg.epochs, cfg.downscale, cfg.trans_cue, cfg.densify_grad_rel, cfg.densify_grad, cfg.prior_layer,
