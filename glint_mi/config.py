@@ -147,6 +147,15 @@ class LossConfig:
     #                                      depth_refit of the run on a grid of <= 2048 of its pixels; batch: per
     #                                      view over the view's rays in each batch (~2.5 patches)
     depth_refit: float = 0.02
+    depth_prior_ref: float = 0.0         # > 0: each view's depth prior weighs min(1, (ref / r)^2) of w_depth, r the
+    #                                      25th percentile of |z_prior - z| / z over the SfM points the view tracks
+    #                                      (z a point's depth, z_prior the SfM-aligned prior's at its pixel;
+    #                                      RayBank.depth_prior_weights, in report.json): the inverse-variance weight,
+    #                                      full for a view whose prior agrees with its points to ref. The lower
+    #                                      quartile: points seen through glass or hidden behind a surface make the
+    #                                      upper tail, the prior's own error moves all of it. Views with < 12 such
+    #                                      points take the median view's weight. 0: every view at w_depth (the paper).
+    #                                      Needs depth_align: sfm
     w_normal: float = 0.3
     prior_decay: float = 0.5             # from this fraction of the run the prior terms prior_decay_terms names fall
     #                                      linearly to 0 at its end; 1.0 = constant weights (the paper, every baseline)
@@ -530,6 +539,11 @@ class TrainConfig:
                 need(isinstance(v, (int, float)) and v >= 0, name, "must be a number >= 0")
         need(self.prior_decay_terms in ("depth,normal", "normal", "depth"), "prior_decay_terms",
              "use depth,normal, normal or depth")
+        need(math.isfinite(self.depth_prior_ref) and self.depth_prior_ref >= 0, "depth_prior_ref",
+             "must be a finite relative depth error >= 0 (0: every view's depth prior at w_depth)")
+        need(self.depth_prior_ref == 0 or self.depth_align == "sfm", "depth_prior_ref",
+             "weighs each view's depth prior by its agreement with the SfM points it is aligned to: use it with "
+             "depth_align: sfm, or set depth_prior_ref=0")
         need(math.isfinite(self.prior_decay_ref) and self.prior_decay_ref >= 0, "prior_decay_ref",
              "is an angle in degrees, >= 0 (0: the falling prior falls to 0)")
         need(self.prior_decay_ref == 0 or self.prior_decay_terms == "normal", "prior_decay_ref",

@@ -282,6 +282,12 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     assert part["normal"] == pytest.approx(0.25 * full["normal"], rel=1e-5)
     assert part["l1"] == pytest.approx(full["l1"], rel=1e-6)
     assert not compiled, compiled
+    # depth_prior_ref: each ray's depth term times its view's weight (RayBank.depth_prior_weights)
+    n_rays = dr.width(b.rgb)
+    weighted = O.batch_objective(c, dataclasses.replace(b, depth_weight=dr.full(mi.Float, 0.3, n_rays)), out,
+                                 {**st, "prior_scale": 1.0}, ray, fwd, len(tr.bank.views), tr.extent)[0]
+    assert b.depth_affine is not None and weighted["depth"] == pytest.approx(0.3 * full["depth"], rel=1e-5)
+    assert weighted["normal"] == pytest.approx(full["normal"], rel=1e-6)
     # prior_decay_terms: normal - the normal prior falls, the depth prior keeps its weight (exact priors: the normal
     # prior is what costs 3DGS PSNR, the depth prior gains)
     c_n = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, prior_decay_terms="normal",

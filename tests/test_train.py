@@ -918,9 +918,13 @@ def test_depth_prior_alignment_to_sfm_points(room, rng):
     assert RayBank(ds.train_views, room).align_depth_priors(None)["aligned_views"] == 0
     # the trainer: depth_align sfm fits every view from the dataset's points and trains with the fixed (w, q)
     ds.points, ds.colors = np.concatenate(pts), np.full((len(np.concatenate(pts)), 3), 128, np.uint8)
-    tr = Trainer(room.parent / "align_run", tiny_cfg(iterations=3, patches=4, depth_align="sfm", components="interface"),
+    tr = Trainer(room.parent / "align_run", tiny_cfg(iterations=3, patches=4, depth_align="sfm", components="interface",
+                                                     depth_prior_ref=0.02),
                  scene=read_scene(room.parent / "scene.xml"), dataset=ds, log=lambda *a: None)
     assert tr.report["depth_align"]["aligned_views"] == len(ds.train_views)
+    # depth_prior_ref: the per-view weights are set up (the dataset has no tracks: every view at w_depth, said)
+    assert "tracked features" in tr.report["depth_prior_weights"]["why"]
+    np.testing.assert_array_equal(tr.bank.depth_weight, 1.0)
     tr.train(progress=False)
     assert all(np.isfinite(h["depth"]) and h["depth"] > 0 for h in tr.history)
 
@@ -941,6 +945,7 @@ def test_device_batch_equals_the_host_batch(room, rng):
         bank.depth_affine[trial] = np.nan
         bank.cue = rng.choice([-1.0, 0.0, 1.0], total).astype(np.float32)
         bank.sfm_depth = rng.uniform(0, 3, total).astype(np.float32)
+        bank.depth_weight = rng.uniform(0, 1, n).astype(np.float32)
         host = to_device(bank.sample(np.random.default_rng(trial), 6, 8))
         dev = bank.sample_device(np.random.default_rng(trial), 6, 8)
         for f in dataclasses.fields(host):
@@ -992,6 +997,56 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
         tiny_cfg(prior_decay_ref=8.0, prior_decay_terms="depth,normal").validate()
     with pytest.raises(ConfigError, match="prior_decay_ref"):
         tiny_cfg(prior_decay_ref=-1.0).validate()
+
+
+def test_depth_prior_weights_follow_the_priors_agreement_with_sfm(room, rng):
+    """depth_prior_weights measures each view's aligned depth prior against the depth of the SfM features it tracks,
+    without ground truth: weight 1 for a prior exact up to its affine map; for a view whose prior carries a relative
+    error e ~ N(0, 0.1) per pixel, r = the 25th percentile of |e| (0.3186 x 0.1, within 15 %) and weight (ref / r)^2;
+    a view without enough features takes the median view's weight; no tracks at all: every view 1, said. The weight
+    scales each ray's depth term (depth_loss_aligned), and depth_prior_ref is refused without depth_align: sfm."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from glint_mi.training import losses as L
+    from glint_mi.training.batch import RayBank
+
+    ds = load_dataset(room)
+    bank = RayBank(ds.train_views, room)
+    bank.depth_inverse = False
+    obs, maps = {}, []
+    for v in ds.train_views:  # features on the ground-truth surfaces; a prior 2 z + 0.5 in every view
+        xs, ys, d, dist, gt = _surface_samples(v, rng, 200)
+        obs[v.name] = (np.stack([xs + 0.5, ys + 0.5], -1), v.c2w[:3, 3] + d * dist[:, None])
+        maps.append(2.0 * gt["depth"].reshape(-1, 1) + 0.5)
+    noisy, starved = 1, 2
+    z_noisy = (maps[noisy] - 0.5) / 2.0
+    maps[noisy] = 2.0 * z_noisy * (1.0 + rng.normal(0.0, 0.1, z_noisy.shape)) + 0.5
+    bank.priors["depth"] = np.concatenate(maps).astype(np.float32)
+    pts = np.concatenate([o[1] for o in obs.values()])
+    assert bank.align_depth_priors(pts)["aligned_views"] == len(ds.train_views)
+    obs[ds.train_views[starved].name] = tuple(x[:5] for x in obs[ds.train_views[starved].name])
+    rep = bank.depth_prior_weights(obs, ref=0.02)
+    w = bank.depth_weight
+    assert rep["measured_views"] == len(ds.train_views) - 1, rep
+    exact = [i for i in range(len(w)) if i not in (noisy, starved)]
+    np.testing.assert_array_equal(w[exact], 1.0)
+    r = 0.02 / np.sqrt(w[noisy])
+    assert r == pytest.approx(0.3186 * 0.1, rel=0.15), r
+    assert w[starved] == np.median(np.delete(w, starved))
+    assert "tracked features" in bank.depth_prior_weights({}, ref=0.02)["why"]
+    np.testing.assert_array_equal(bank.depth_weight, 1.0)
+    # the loss: each ray's term times its weight; the mean over the valid rays as before
+    depth, prior = mi.Float([1.0, 2.0, 3.0]), mi.Float([1.5, 2.0, 2.0])
+    mask, one, zero = mi.Bool([True, True, True]), mi.Float(1.0), mi.Float(0.0)
+    plain = L.depth_loss_aligned(depth, prior, mask, one, zero)
+    half = L.depth_loss_aligned(depth, prior, mask, one, zero, weight=mi.Float([0.5, 0.5, 0.5]))
+    only_first = L.depth_loss_aligned(depth, prior, mask, one, zero, weight=mi.Float([1.0, 1.0, 0.0]))
+    assert dr.allclose(half, 0.5 * plain) and dr.allclose(only_first, 0.25 / 3)
+    with pytest.raises(ConfigError, match="depth_prior_ref"):
+        tiny_cfg(depth_prior_ref=0.02, depth_align="image").validate()
+    with pytest.raises(ConfigError, match="depth_prior_ref"):
+        tiny_cfg(depth_prior_ref=-0.1).validate()
 
 
 def test_sfm_see_through_cue(room, rng):

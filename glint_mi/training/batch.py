@@ -36,6 +36,7 @@ class Batch:
     cue: np.ndarray | None = None       # [M] SfM see-through cue: +1 seen through, -1 opaque, 0 no evidence
     depth_inverse: bool = False         # the depth prior is a disparity: affine in 1 / depth
     sfm_depth: np.ndarray | None = None  # [M] planar depth of a tracked SfM feature at the ray's pixel (0 = none)
+    depth_weight: np.ndarray | None = None  # [M] the depth prior's weight in the ray's view (depth_prior_ref)
 
 
 class RayBank:
@@ -66,6 +67,7 @@ class RayBank:
         self.depth_affine = None  # see align_depth_priors
         self.cue = None  # see see_through_cue
         self.sfm_depth = None  # see set_sfm_depth
+        self.depth_weight = None  # see depth_prior_weights
         self.glass = None
         if glass_masks in ("gt", "prior"):  # TSGS's masks: ground truth (labelled) or a segmentation model's
             from glint_mi.data import DatasetError
@@ -173,6 +175,37 @@ class RayBank:
         if self.depth_inverse:
             z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), np.inf)
         return np.where(pr > 0, z, np.nan)
+
+    def depth_prior_weights(self, observations: dict | None, ref: float, min_points: int = 12,
+                            quantile: float = 25.0) -> dict:
+        """Each view's depth-prior weight from the prior's agreement with the SfM points it was aligned to
+        (:meth:`align_depth_priors` first), measured without ground truth: r = the ``quantile``-th percentile of
+        |z_prior - z| / z over the tracked features of the view (z the feature's 3D point's planar depth, z_prior
+        the aligned prior's at its pixel), weight min(1, (ref / r)^2) - inverse variance, full for a view whose
+        prior agrees to ``ref``. A low quantile: features seen through glass (where the prior sees the pane) or
+        hidden behind a surface lie in the upper tail; the prior's own error moves the whole distribution. Views
+        with fewer than ``min_points`` measured features (or no fit) take the median measured view's weight; with
+        no measured view every weight is 1 (said in the summary). Sets ``self.depth_weight`` [V] float32; returns a
+        summary for the run report."""
+        V = len(self.views)
+        r = np.full(V, np.nan)
+        for i, (row, col, z) in self.observation_pixels(observations).items():
+            zp = self.prior_surface_depth(i, row, col)
+            ok = np.isfinite(zp) & (z > 0)
+            if ok.sum() >= min_points:
+                r[i] = np.percentile(np.abs(zp[ok] - z[ok]) / z[ok], quantile)
+        measured = np.isfinite(r)
+        w = np.minimum(1.0, (ref / np.maximum(r, 1e-9)) ** 2)
+        out = {"ref": ref, "quantile": quantile, "views": V, "measured_views": int(measured.sum())}
+        if not measured.any():
+            self.depth_weight = np.ones(V, np.float32)
+            return {**out, "why": f"no view with {min_points} tracked features on the aligned depth prior: "
+                                  "every view at w_depth"}
+        w = np.where(measured, w, np.median(w[measured]))
+        self.depth_weight = w.astype(np.float32)
+        return {**out, "residual_median": float(np.median(r[measured])), "weight_median": float(np.median(w)),
+                "weight_min": float(w.min()), "weight_mean": float(w.mean()),
+                "full_weight_views": int((w >= 1.0).sum())}
 
     def prior_normals_world(self, i: int) -> np.ndarray:
         """View ``i``'s normal prior as an [H, W, 3] image of world-space normals (float64; 0 where it is invalid or
@@ -467,7 +500,7 @@ class RayBank:
     def device_arrays(self) -> dict:
         """The bank's photos, rays and priors as flat Dr.Jit arrays (made once, again when the depth alignment, the
         see-through cue or the SfM depth are replaced)."""
-        key = (self.depth_affine, self.cue, self.sfm_depth)
+        key = (self.depth_affine, self.cue, self.sfm_depth, self.depth_weight)
         cached = getattr(self, "_device", None)
         if cached is not None and all(x is y for x, y in zip(cached[0], key)):
             return cached[1]
@@ -483,7 +516,7 @@ class RayBank:
                   "depth": None if self.priors.get("depth") is None else f(self.priors["depth"][:, 0]),
                   "normal": f(self.priors.get("normal")), "albedo": f(self.priors.get("albedo")),
                   "glass": f(self.glass), "affine": f(self.depth_affine), "cue": f(self.cue),
-                  "sfm_depth": f(self.sfm_depth)}
+                  "sfm_depth": f(self.sfm_depth), "depth_weight": f(self.depth_weight)}
         self._device = (key, arrays)
         return arrays
 
@@ -500,7 +533,8 @@ class RayBank:
                      None if self.glass is None else self.glass[flat],
                      None if self.depth_affine is None else self.depth_affine[view], patches, p,
                      None if self.cue is None else self.cue[flat], self.depth_inverse,
-                     None if self.sfm_depth is None else self.sfm_depth[flat])
+                     None if self.sfm_depth is None else self.sfm_depth[flat],
+                     None if self.depth_weight is None else self.depth_weight[view])
 
 
 def device_neighbours(patches: int, p: int):
@@ -548,6 +582,7 @@ class DeviceBatch:
     patches: int
     patch: int
     depth_inverse: bool = False
+    depth_weight: object | None = None  # per ray, its view's depth-prior weight (depth_prior_ref)
 
 
 def _gather_batch(a: dict, view, flat, patches: int, p: int, depth_inverse: bool) -> DeviceBatch:
@@ -561,7 +596,8 @@ def _gather_batch(a: dict, view, flat, patches: int, p: int, depth_inverse: bool
     return DeviceBatch(view, g3(mi.Point3f, "origins", view), g3(mi.Vector3f, "dirs", flat),
                        tuple(g3(mi.Vector3f, "axes", view * 3 + k) for k in range(3)), g3(mi.Color3f, "rgb", flat),
                        g1("depth", flat), g3(mi.Vector3f, "normal", flat), g3(mi.Color3f, "albedo", flat),
-                       g1("glass", flat), affine, g1("cue", flat), g1("sfm_depth", flat), patches, p, depth_inverse)
+                       g1("glass", flat), affine, g1("cue", flat), g1("sfm_depth", flat), patches, p, depth_inverse,
+                       g1("depth_weight", view))
 
 
 def to_device(b: Batch) -> DeviceBatch:
@@ -577,4 +613,4 @@ def to_device(b: Batch) -> DeviceBatch:
                        vec(mi.Vector3f, b.direction), tuple(vec(mi.Vector3f, b.axes[:, :, k]) for k in range(3)),
                        vec(mi.Color3f, b.rgb), one(b.depth_prior), vec(mi.Vector3f, b.normal_prior),
                        vec(mi.Color3f, b.albedo_prior), one(b.glass), affine, one(b.cue), one(b.sfm_depth),
-                       b.patches, b.patch, b.depth_inverse)
+                       b.patches, b.patch, b.depth_inverse, one(b.depth_weight))

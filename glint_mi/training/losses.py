@@ -40,15 +40,18 @@ def depth_loss(depth, prior, mask, view, n_views: int, behind=None):
     return depth_loss_aligned(depth, prior, mask, w, q, behind)
 
 
-def depth_loss_aligned(depth, prior, mask, w, q, behind=None):
+def depth_loss_aligned(depth, prior, mask, w, q, behind=None, weight=None):
     """The same loss with (w, q) given per ray (fitted once per view to the metric SfM points): the interface's
-    depth is then anchored in metres, not only up to a per-image scale and shift.
+    depth is then anchored in metres, not only up to a per-image scale and shift. ``weight`` (per ray, detached;
+    e.g. its view's depth_prior_ref weight) scales each ray's term; the mean still divides by the valid rays.
 
     ``behind`` = (D_behind, ok): a second layer the prior may describe instead (``prior_layer: nearer``): where
     ``ok``, each ray's residual is the smaller of the two layers' (nearer_layer)."""
     r = dr.square(w * depth + q - prior)
     if behind is not None:
         r = nearer_layer(r, dr.square(w * behind[0] + q - prior), behind[1])
+    if weight is not None:
+        r = r * dr.detach(weight)
     r = dr.select(mask, r, 0.0)
     return dr.sum(r) / dr.maximum(dr.count(mask), 1)
 

@@ -135,7 +135,7 @@ def _depth(x):
         vid = dr.select(fit, x.n_views, b.view)  # fitted views: a spare slot
         w_b, q_b = L.depth_fit(depth, prior, mask & ~fit, vid, x.n_views + 1)
         return c.w_depth * x.decay("depth") * L.depth_loss_aligned(depth, prior, mask, dr.select(fit, w_v, w_b),
-                                                           dr.select(fit, q_v, q_b), behind)
+                                                           dr.select(fit, q_v, q_b), behind, b.depth_weight)
     return c.w_depth * x.decay("depth") * L.depth_loss(depth, prior, mask, b.view, x.n_views, behind)
 
 
