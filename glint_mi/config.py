@@ -155,7 +155,8 @@ class LossConfig:
     #                                      quartile: points seen through glass or hidden behind a surface make the
     #                                      upper tail, the prior's own error moves all of it. Views with < 12 such
     #                                      points take the median view's weight. 0: every view at w_depth (the paper).
-    #                                      Needs depth_align: sfm
+    #                                      Measured with the SfM fit whatever depth_align the loss uses. Being decided
+    #                                      on the tuning rooms' prior levels and 9801-9804 (docs/results/prior_sweep)
     w_normal: float = 0.3
     prior_decay: float = 0.5             # from this fraction of the run the prior terms prior_decay_terms names fall
     #                                      linearly to 0 at its end; 1.0 = constant weights (the paper, every baseline)
@@ -541,9 +542,6 @@ class TrainConfig:
              "use depth,normal, normal or depth")
         need(math.isfinite(self.depth_prior_ref) and self.depth_prior_ref >= 0, "depth_prior_ref",
              "must be a finite relative depth error >= 0 (0: every view's depth prior at w_depth)")
-        need(self.depth_prior_ref == 0 or self.depth_align == "sfm", "depth_prior_ref",
-             "weighs each view's depth prior by its agreement with the SfM points it is aligned to: use it with "
-             "depth_align: sfm, or set depth_prior_ref=0")
         need(math.isfinite(self.prior_decay_ref) and self.prior_decay_ref >= 0, "prior_decay_ref",
              "is an angle in degrees, >= 0 (0: the falling prior falls to 0)")
         need(self.prior_decay_ref == 0 or self.prior_decay_terms == "normal", "prior_decay_ref",
@@ -634,6 +632,8 @@ MIGRATIONS = (
      lambda v: {**v, "coarse_to_fine": ""}),  # it drew its patches from full-size images throughout
     ("the clones' coverage", lambda v: "clone_opacity" not in v,
      lambda v: {**v, "clone_opacity": "copy"}),  # a clone copied its parent's opacity (3DGS's)
+    ("the depth prior's weight per view", lambda v: "depth_prior_ref" not in v,
+     lambda v: {**v, "depth_prior_ref": 0.0}),  # every view's depth prior weighed w_depth
 )
 
 

@@ -925,6 +925,12 @@ def test_depth_prior_alignment_to_sfm_points(room, rng):
     # depth_prior_ref: the per-view weights are set up (the dataset has no tracks: every view at w_depth, said)
     assert "tracked features" in tr.report["depth_prior_weights"]["why"]
     np.testing.assert_array_equal(tr.bank.depth_weight, 1.0)
+    # with another depth_align the weights are measured against the SfM fit, and the loss keeps its own alignment
+    tr = Trainer(room.parent / "align_run_batch", tiny_cfg(iterations=3, patches=4, depth_align="batch",
+                                                           components="interface", depth_prior_ref=0.02),
+                 scene=read_scene(room.parent / "scene.xml"), dataset=ds, log=lambda *a: None)
+    assert tr.bank.depth_affine is None and "depth_align" not in tr.report
+    assert tr.report["depth_prior_weights"]["views"] == len(ds.train_views)
     tr.train(progress=False)
     assert all(np.isfinite(h["depth"]) and h["depth"] > 0 for h in tr.history)
 
@@ -1043,8 +1049,9 @@ def test_depth_prior_weights_follow_the_priors_agreement_with_sfm(room, rng):
     half = L.depth_loss_aligned(depth, prior, mask, one, zero, weight=mi.Float([0.5, 0.5, 0.5]))
     only_first = L.depth_loss_aligned(depth, prior, mask, one, zero, weight=mi.Float([1.0, 1.0, 0.0]))
     assert dr.allclose(half, 0.5 * plain) and dr.allclose(only_first, 0.25 / 3)
-    with pytest.raises(ConfigError, match="depth_prior_ref"):
-        tiny_cfg(depth_prior_ref=0.02, depth_align="image").validate()
+    view = mi.UInt32([0, 0, 1])  # the per-batch fit (depth_align: batch): the fit unweighted, the terms weighed
+    fitted = L.depth_loss(depth, prior, mask, view, 2)
+    assert dr.allclose(L.depth_loss(depth, prior, mask, view, 2, weight=mi.Float([0.5, 0.5, 0.5])), 0.5 * fitted)
     with pytest.raises(ConfigError, match="depth_prior_ref"):
         tiny_cfg(depth_prior_ref=-0.1).validate()
 
@@ -1539,7 +1546,7 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     saved = TrainConfig.load(run / "config.json").flat()  # as runs before 2026-11-28 saved it: flat
     for k in ("epochs", "densify_grad_rel", "prior_layer", "blend", "downscale", "eval_full", "trans_albedo",
               "cue_votes", "cue_margin", "normal_loss", "normal_early", "prior_decay_ref", "coarse_to_fine",
-              "clone_opacity"):
+              "clone_opacity", "depth_prior_ref"):
         saved.pop(k)
     saved.update(train_downsample=1, trans_cue="sfm", fresnel=True, densify_grad=2e-4)  # 2e-4: the old default
     saved["preset"] = "bench"  # whose coarse start and shared clones an old run must not read back
@@ -1547,9 +1554,10 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     cfg = TrainConfig.load(run / "config.json")
     assert (cfg.epochs, cfg.downscale, cfg.trans_cue, cfg.densify_grad_rel, cfg.densify_grad, cfg.prior_layer,
             cfg.blend, cfg.trans_albedo, cfg.cue_votes, cfg.cue_margin, cfg.normal_loss, cfg.normal_early,
-            cfg.prior_decay_ref, cfg.coarse_to_fine, cfg.clone_opacity) == \
-        (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05, "l1_cos", "off", 0.0, "", "copy")
-    assert len(MIGRATIONS) == 10
+            cfg.prior_decay_ref, cfg.coarse_to_fine, cfg.clone_opacity, cfg.depth_prior_ref) == \
+        (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05, "l1_cos", "off", 0.0, "", "copy",
+         0.0)
+    assert len(MIGRATIONS) == 11
     again = Trainer(run, cfg, resume=True, log=lambda *a: None)
     assert again.it == 2
     again.train(progress=False)

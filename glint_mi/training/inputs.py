@@ -34,12 +34,16 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
         report["depth_align"] = bank.align_depth_priors(ds.points, seed=cfg.seed)
         log(f"depth prior aligned to the SfM points in {report['depth_align']['aligned_views']} of "
             f"{len(bank.views)} views (the others keep the per-batch fit)")
-        if cfg.depth_prior_ref > 0:
-            dw = report["depth_prior_weights"] = bank.depth_prior_weights(ds.observations(), cfg.depth_prior_ref)
-            log(f"depth prior weighed per view by its agreement with the SfM points (depth_prior_ref "
-                f"{cfg.depth_prior_ref:g}): " + (dw["why"] if "why" in dw else
-                f"median residual {dw['residual_median']:.4f}, weights median {dw['weight_median']:.2f}, "
-                f"min {dw['weight_min']:.2f}, {dw['full_weight_views']} of {dw['views']} views at full weight"))
+    if cfg.depth_prior_ref > 0 and "depth" in bank.has:
+        loss_fit = bank.depth_affine
+        if cfg.depth_align != "sfm":  # measured against the SfM fit; the loss keeps its own alignment
+            bank.align_depth_priors(ds.points, seed=cfg.seed)
+        dw = report["depth_prior_weights"] = bank.depth_prior_weights(ds.observations(), cfg.depth_prior_ref)
+        bank.depth_affine = loss_fit if cfg.depth_align != "sfm" else bank.depth_affine
+        log(f"depth prior weighed per view by its agreement with the SfM points (depth_prior_ref "
+            f"{cfg.depth_prior_ref:g}): " + (dw["why"] if "why" in dw else
+            f"median residual {dw['residual_median']:.4f}, weights median {dw['weight_median']:.2f}, "
+            f"min {dw['weight_min']:.2f}, {dw['full_weight_views']} of {dw['views']} views at full weight"))
     if cfg.trans_cue != "none" and has_transmission:  # only L_trans and plausibility read it
         cue = bank.see_through_cue(ds.observations(), cfg.cue_margin, cfg.cue_radius, cfg.cue_votes,
                                    cfg.cue_point_share, cfg.cue_photo)

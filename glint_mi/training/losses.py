@@ -33,11 +33,11 @@ def depth_fit(depth, prior, mask, view, n_views: int):
     return dr.gather(mi.Float, w, view), dr.gather(mi.Float, q, view)
 
 
-def depth_loss(depth, prior, mask, view, n_views: int, behind=None):
-    """Scale-shift-invariant depth loss (MonoSDF): mean over valid rays of (w D + q - P)^2. ``behind``: see
-    depth_loss_aligned."""
+def depth_loss(depth, prior, mask, view, n_views: int, behind=None, weight=None):
+    """Scale-shift-invariant depth loss (MonoSDF): mean over valid rays of (w D + q - P)^2. ``behind``, ``weight``:
+    see depth_loss_aligned (the fit itself is unweighted)."""
     w, q = depth_fit(depth, prior, mask, view, n_views)
-    return depth_loss_aligned(depth, prior, mask, w, q, behind)
+    return depth_loss_aligned(depth, prior, mask, w, q, behind, weight)
 
 
 def depth_loss_aligned(depth, prior, mask, w, q, behind=None, weight=None):

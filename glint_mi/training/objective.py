@@ -136,7 +136,7 @@ def _depth(x):
         w_b, q_b = L.depth_fit(depth, prior, mask & ~fit, vid, x.n_views + 1)
         return c.w_depth * x.decay("depth") * L.depth_loss_aligned(depth, prior, mask, dr.select(fit, w_v, w_b),
                                                            dr.select(fit, q_v, q_b), behind, b.depth_weight)
-    return c.w_depth * x.decay("depth") * L.depth_loss(depth, prior, mask, b.view, x.n_views, behind)
+    return c.w_depth * x.decay("depth") * L.depth_loss(depth, prior, mask, b.view, x.n_views, behind, b.depth_weight)
 
 
 def _sfm_depth(x):
