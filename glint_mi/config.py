@@ -147,7 +147,7 @@ class LossConfig:
     #                                      depth_refit of the run on a grid of <= 2048 of its pixels; batch: per
     #                                      view over the view's rays in each batch (~2.5 patches)
     depth_refit: float = 0.02
-    depth_prior_ref: float = 0.0         # > 0: each view's depth prior weighs min(1, (ref / r)^2) of w_depth, r the
+    depth_prior_ref: float = 0.02        # > 0: each view's depth prior weighs min(1, (ref / r)^2) of w_depth, r the
     #                                      25th percentile of |z_prior - z| / z over the SfM points the view tracks
     #                                      (z a point's depth, z_prior the SfM-aligned prior's at its pixel;
     #                                      RayBank.depth_prior_weights, in report.json): the inverse-variance weight,
@@ -155,8 +155,8 @@ class LossConfig:
     #                                      quartile: points seen through glass or hidden behind a surface make the
     #                                      upper tail, the prior's own error moves all of it. Views with < 12 such
     #                                      points take the median view's weight. 0: every view at w_depth (the paper).
-    #                                      Measured with the SfM fit whatever depth_align the loss uses. Being decided
-    #                                      on the tuning rooms' prior levels and 9801-9804 (docs/results/prior_sweep)
+    #                                      Measured with the SfM fit whatever depth_align the loss uses. Decided on the
+    #                                      tuning rooms' prior levels, checked on 9801-9804 (docs/decisions.md)
     w_normal: float = 0.3
     prior_decay: float = 0.5             # from this fraction of the run the prior terms prior_decay_terms names fall
     #                                      linearly to 0 at its end; 1.0 = constant weights (the paper, every baseline)

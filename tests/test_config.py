@@ -82,25 +82,26 @@ def test_fields_by_path():
 
 
 def test_the_converged_preset_is_the_converged_tables_run():
-    """``--preset converged`` is the command of the converged table's GLINT runs (converge_98xx/s52.sh with its
-    capacity `wide`): with that table's protocol flags (96 x 54, no SfM depth term) its config is a committed run's
-    config.json in every field but the iterations the epochs resolve to; each baseline's is its own point's run
-    (growth; glint-paper at 120 epochs) in every field but those the converged preset and its migrations name."""
+    """``--preset converged`` is the command of the converged table's GLINT runs (converge_98xx/s54.sh: capacity
+    `wide`, depth_prior_ref 0.02): with that table's protocol flags (96 x 54, no SfM depth term) its config is a
+    committed run's config.json in every field but the iterations the epochs resolve to; each baseline's is its own
+    point's run (growth; glint-paper at 120 epochs) in every field but those the converged preset and its
+    migrations name."""
     from glint_mi.config import TrainConfig
     from glint_mi.methods import config_for
 
     groups = ROOT / "docs/results/converge_98xx/groups"
     protocol = dict(downscale=2, w_sfm_depth=0.0, eval_every=1000, threads=1)
-    saved = TrainConfig.load(groups / "s52_el60_wide/runs/scene_9801/glint/config.json").flat()
+    saved = TrainConfig.load(groups / "s54_d54/runs/scene_9801/glint/config.json").flat()
     now = config_for("glint", "converged", **protocol).flat()
     differ = {k: (saved[k], now[k]) for k in saved if saved[k] != now[k]}
     assert differ == {"iterations": (4253, 4000)}, differ
     # the table's baselines ran --preset bench with the growth flags, before the coarse start and the clones'
     # coverage existed (read back as "" and copy, config.MIGRATIONS): the preset's name and iterations differ, and
     # the falling normal prior's floor, which a constant prior (prior_decay 1) never reads; 3dgs-priors has followed
-    # GLINT's falling prior since those runs (methods.WITH_PRIORS)
+    # GLINT's falling prior and its per-view depth weight since those runs (methods.WITH_PRIORS)
     for method, run, since in (("3dgs", "e60_grow", {}), ("tsgs", "e60_grow", {}),
-                               ("3dgs-priors", "e60_grow", {"prior_decay": (1.0, 0.5)}),
+                               ("3dgs-priors", "e60_grow", {"prior_decay": (1.0, 0.5), "depth_prior_ref": (0.0, 0.02)}),
                                ("glint-paper", "e120_grow_c", {})):
         saved = TrainConfig.load(groups / run / f"runs/scene_9802/{method}/config.json").flat()
         now = config_for(method, "converged", **protocol).flat()
