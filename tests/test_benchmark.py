@@ -47,7 +47,7 @@ def test_prior_parity_rows_take_glints_inputs_and_weights():
     for row, base in (("3dgs-priors", "3dgs"), ("2dgs-priors", "2dgs")):
         a, b = config_for(row, "tiny"), config_for(base, "tiny")
         differ = {k for k, v in a.flat().items() if v != getattr(b, k)}
-        assert differ == {"priors", "w_depth", "w_normal", "w_l1", "w_dssim", "prior_decay"}, \
+        assert differ == {"priors", "w_depth", "w_normal", "w_l1", "w_dssim", "prior_decay", "depth_prior_ref"}, \
             (row, differ)
         for k in differ:
             assert getattr(a, k) == getattr(glint, k), (row, k)

@@ -1355,8 +1355,8 @@ def test_glint_without_a_glass_cue_trains_as_3dgs(room, tmp_path, profile):
     assert set(tr.dropped) == {"transmission", "reflection"} and list(tr.sets) == ["interface"]
     ref = config_for("3dgs", "tiny", log_every=1000).with_budget(tr.train_pixels)
     differ = {k for k, v in ref.flat().items() if getattr(tr.cfg, k) != v}
-    inert = {"components", "w_direct", "w_trans", "w_treg", "w_plausibility",
-             "prior_decay"}  # the prior terms' schedule: no prior is read (w_depth = w_normal = 0, as 3dgs)
+    inert = {"components", "w_direct", "w_trans", "w_treg", "w_plausibility",  # the prior terms' schedule and
+             "prior_decay", "depth_prior_ref"}  # per-view weight: no prior is read (w_depth = w_normal = 0, as 3dgs)
     assert tr.cfg.w_depth == tr.cfg.w_normal == 0.0
     assert differ == inert | ({"w_sfm_depth", "no_glass"} if profile == "3dgs+sfm" else set()), differ
     assert TrainConfig.load(tmp_path / "g" / "config.json").w_sfm_depth == tr.cfg.w_sfm_depth
