@@ -722,8 +722,8 @@ PRESETS = {
 # (the coarse start gained nothing there, coarse_to_fine "At 96 x 54 and the converged budget"), and the capacity that
 # lets the sets grow to the Gaussian cap (densify_top 0.25, densify_grad_rel 0.02: +0.61 dB on the tuning rooms,
 # decided there by the PSNR rule; kept by the check rule on 9801-9804 at two seeds, where it gave +0.03 dB for a
-# little geometry lost, converge_98xx "wide at the converged preset"; under the priors at 10 of 11 prior-error
-# room-levels run, AbsRel 1.4 % over at realistic-v1 x2 without the SfM depth term, 12 % under with it, prior_sweep).
+# little geometry lost, converge_98xx "wide at the converged preset"; under the priors at 13 of 14 prior-error
+# room-levels, AbsRel 1.4 % over at realistic-v1 x2 without the SfM depth term until depth_prior_ref, prior_sweep).
 # ~16 minutes of GLINT a 96 x 54 room on one core (epochs are rays per pixel: 4x that at 192 x 108). Every
 # baseline keeps the capacity where it stopped (methods.BASELINE_AT).
 # GLINT's kernel there is 3DGS's ellipsoid: surfels' cost grows with the budget (on 9803 they cost 3DGS 0.97 dB at

@@ -925,14 +925,16 @@ def test_depth_prior_alignment_to_sfm_points(room, rng):
     # depth_prior_ref: the per-view weights are set up (the dataset has no tracks: every view at w_depth, said)
     assert "tracked features" in tr.report["depth_prior_weights"]["why"]
     np.testing.assert_array_equal(tr.bank.depth_weight, 1.0)
-    # with another depth_align the weights are measured against the SfM fit, and the loss keeps its own alignment
-    tr = Trainer(room.parent / "align_run_batch", tiny_cfg(iterations=3, patches=4, depth_align="batch",
-                                                           components="interface", depth_prior_ref=0.02),
-                 scene=read_scene(room.parent / "scene.xml"), dataset=ds, log=lambda *a: None)
-    assert tr.bank.depth_affine is None and "depth_align" not in tr.report
-    assert tr.report["depth_prior_weights"]["views"] == len(ds.train_views)
     tr.train(progress=False)
     assert all(np.isfinite(h["depth"]) and h["depth"] > 0 for h in tr.history)
+    # with another depth_align the weights are measured against the SfM fit, and the loss keeps its own alignment
+    tb = Trainer(room.parent / "align_run_batch", tiny_cfg(iterations=3, patches=4, depth_align="batch",
+                                                           components="interface", depth_prior_ref=0.02),
+                 scene=read_scene(room.parent / "scene.xml"), dataset=ds, log=lambda *a: None)
+    assert tb.bank.depth_affine is None and "depth_align" not in tb.report
+    assert tb.report["depth_prior_weights"]["views"] == len(ds.train_views)
+    tb.train(progress=False)
+    assert all(np.isfinite(h["depth"]) and h["depth"] > 0 for h in tb.history)
 
 
 def test_device_batch_equals_the_host_batch(room, rng):
@@ -1010,7 +1012,7 @@ def test_depth_prior_weights_follow_the_priors_agreement_with_sfm(room, rng):
     without ground truth: weight 1 for a prior exact up to its affine map; for a view whose prior carries a relative
     error e ~ N(0, 0.1) per pixel, r = the 25th percentile of |e| (0.3186 x 0.1, within 15 %) and weight (ref / r)^2;
     a view without enough features takes the median view's weight; no tracks at all: every view 1, said. The weight
-    scales each ray's depth term (depth_loss_aligned), and depth_prior_ref is refused without depth_align: sfm."""
+    scales each ray's depth term (depth_loss_aligned, depth_loss), and a negative depth_prior_ref is refused."""
     import drjit as dr
     import mitsuba as mi
 

@@ -39,6 +39,13 @@ class Batch:
     depth_weight: np.ndarray | None = None  # [M] the depth prior's weight in the ray's view (depth_prior_ref)
 
 
+def inverse_variance_share(ref, err):
+    """The share of its weight a prior term keeps when its measured error is ``err`` against a reference error
+    ``ref``: min(1, (ref / err)^2) (scalar or array) - the normal prior's floor (prior_decay_ref) and each view's
+    depth-prior weight (depth_prior_ref)."""
+    return np.minimum(1.0, (ref / np.maximum(err, 1e-9)) ** 2)
+
+
 class RayBank:
     def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: str = "depth_gap"):
         """Photos, priors and rays of ``views`` at their own resolution (a dataset loaded with ``downscale`` k
@@ -195,7 +202,7 @@ class RayBank:
             if ok.sum() >= min_points:
                 r[i] = np.percentile(np.abs(zp[ok] - z[ok]) / z[ok], quantile)
         measured = np.isfinite(r)
-        w = np.minimum(1.0, (ref / np.maximum(r, 1e-9)) ** 2)
+        w = inverse_variance_share(ref, r)
         out = {"ref": ref, "quantile": quantile, "views": V, "measured_views": int(measured.sum())}
         if not measured.any():
             self.depth_weight = np.ones(V, np.float32)
@@ -499,7 +506,7 @@ class RayBank:
 
     def device_arrays(self) -> dict:
         """The bank's photos, rays and priors as flat Dr.Jit arrays (made once, again when the depth alignment, the
-        see-through cue or the SfM depth are replaced)."""
+        see-through cue, the SfM depth or the depth prior's view weights are replaced)."""
         key = (self.depth_affine, self.cue, self.sfm_depth, self.depth_weight)
         cached = getattr(self, "_device", None)
         if cached is not None and all(x is y for x, y in zip(cached[0], key)):

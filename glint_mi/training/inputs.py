@@ -7,7 +7,7 @@ import numpy as np
 
 from glint_mi.config import TrainConfig
 from glint_mi.data import Dataset
-from glint_mi.training.batch import RayBank
+from glint_mi.training.batch import RayBank, inverse_variance_share
 
 
 def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, report: dict, log=print,
@@ -39,7 +39,8 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
         if cfg.depth_align != "sfm":  # measured against the SfM fit; the loss keeps its own alignment
             bank.align_depth_priors(ds.points, seed=cfg.seed)
         dw = report["depth_prior_weights"] = bank.depth_prior_weights(ds.observations(), cfg.depth_prior_ref)
-        bank.depth_affine = loss_fit if cfg.depth_align != "sfm" else bank.depth_affine
+        if cfg.depth_align != "sfm":
+            bank.depth_affine = loss_fit
         log(f"depth prior weighed per view by its agreement with the SfM points (depth_prior_ref "
             f"{cfg.depth_prior_ref:g}): " + (dw["why"] if "why" in dw else
             f"median residual {dw['residual_median']:.4f}, weights median {dw['weight_median']:.2f}, "
@@ -96,6 +97,6 @@ def normal_prior_floor(cfg: TrainConfig, agreement: dict | None) -> tuple[float,
     if a is None:
         why = (agreement or {}).get("why", "no normal prior")
         return 0.0, f"the normal prior's agreement with the SfM points was not measured ({why}): it falls to 0"
-    f = min(1.0, (cfg.prior_decay_ref / max(a, 1e-6)) ** 2)
+    f = float(inverse_variance_share(cfg.prior_decay_ref, a))
     return f, (f"the normal prior falls to {f:.2f} of its weight: it agrees with the SfM points' planes to {a:.1f} "
                f"deg, prior_decay_ref {cfg.prior_decay_ref:g} deg")
