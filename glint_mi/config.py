@@ -293,6 +293,10 @@ class DensifyConfig:
     prune_scale: float = 0.1             # prune Gaussians larger than this x extent (after the first reset)
     max_gaussians: int = 30_000          # every set together: one budget per method (GLINT's three sets share
     #                                      what a one-set baseline gets)
+    cap_schedule: str = "fixed"          # the budget over the growth window: "fixed" max_gaussians from the start
+    #                                      (3DGS's); "linear" a cap rising from the count at the first densify
+    #                                      step to max_gaussians at the end of growth, so that the sets cannot
+    #                                      spend the budget before the model has learnt where it is needed
 
 
 @dataclasses.dataclass
@@ -553,6 +557,9 @@ class TrainConfig:
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
         need(self.clone_opacity in ("copy", "shared"), "clone_opacity",
              "use copy (a clone keeps its parent's opacity, 3DGS) or shared (the pair covers what the parent did)")
+        need(self.cap_schedule in ("fixed", "linear"), "cap_schedule",
+             "use fixed (max_gaussians from the start) or linear (a cap rising to max_gaussians over the growth "
+             "window)")
         need(self.split_mode in ("sample", "axis"), "split_mode",
              "use sample (children drawn from the parent, 3DGS) or axis (two children along its largest axis that "
              "keep its mean, covariance and integrated opacity)")

@@ -16,9 +16,10 @@ PLAIN_PHOTO = dict(w_l1=0.8, w_dssim=0.2)  # 3DGS / 2DGS weights
 ALPHA = dict(blend="alpha")  # C = sum T_i alpha_i c_i: no Fresnel weights, no specular, no transparency attribute
 # glint_mi's SfM depth term, its near-to-far weight of the consistency, its falling normal prior, its depth prior
 # weighed per view by its agreement with SfM and the bench preset's clones that share their parent's coverage are no
-# baseline's (3DGS's clone copies the opacity, its split draws the children from the parent)
+# baseline's (3DGS's clone copies the opacity, its split draws the children from the parent; its budget is whole from
+# the start: cap_schedule fixed)
 NOT_OURS = dict(w_sfm_depth=0.0, normal_weight="uniform", prior_decay=1.0, clone_opacity="copy", split_mode="sample",
-                depth_prior_ref=0.0)
+                depth_prior_ref=0.0, cap_schedule="fixed")
 SURFELS = dict(kernel="surfel")  # 2DGS, PGSR, EnvGS, Ref-GS, TSGS, GLINT's release: surfels, whatever the preset
 # At the converged preset every baseline keeps growth (densify_top 0.12, densify_grad_rel 0.05), where 3dgs, tsgs,
 # glint-paper and 3dgs-priors stopped gaining on 9801-9802 (docs/results/converge_98xx; with the preset's wider
@@ -40,7 +41,7 @@ WITH_PRIORS = dict(priors="all", **GLINT_PHOTO, **{k: getattr(_GLINT, k) for k i
 PAPER = dict(depth_align="image", normal_loss="cos", normal_early="unmasked", t_raise="free", trans_cue="none",
              trans_albedo="masks",  # the paper's masks: LowA & HighB on the albedo prior
              w_sfm_depth=0.0, components="all", refine_from=40 / 60,  # the supplement's refine stage
-             clone_opacity="copy", split_mode="sample",  # 3DGS's densification, as the paper's
+             clone_opacity="copy", split_mode="sample", cap_schedule="fixed",  # 3DGS's densification, as the paper's
              prior_decay=1.0, depth_prior_ref=0.0,  # the paper's prior weights are constant, in every view
              **SURFELS,  # the release's flat Gaussians (the converged preset gives glint_mi's GLINT ellipsoids)
              coarse_to_fine="",  # full-size images (as the paper): its whole-image depth fit refits those only

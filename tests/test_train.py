@@ -302,6 +302,45 @@ def test_an_axis_split_keeps_its_parents_mean_covariance_and_opacity(rng, kernel
         tiny_cfg(split_mode="four")
 
 
+def test_cap_schedule_linear_holds_the_budget_to_the_growth_window(rng):
+    """cap_schedule: "linear" lets every set together hold the count at the first densify step plus the share of
+    the rest of max_gaussians that the growth window has run (densify_from 0.1 .. densify_until 0.5 of 1,000
+    iterations: none at 100, half at 300, all at 500); "fixed" gives the whole budget at once. The start count is
+    part of the strategy's state, so a resumed run keeps its cap."""
+    def grown(mode):
+        cfg = tiny_cfg(iterations=1000, epochs=0.0, densify_from=0.1, densify_until=0.5, densify_top=1.0,
+                       densify_grad=0.0, densify_grad_rel=0.0, prune_opacity=0.005, max_gaussians=40,
+                       cap_schedule=mode)
+        n = 20
+        sets = {"interface": GaussianSet.from_activated(rng.normal(size=(n, 3)), np.full((n, 3), 0.001),
+                                                        opacities=np.full(n, 0.9))}
+        adam = Adam({"means": 1, "log_scales": 1, "quats_wxyz": 1, "logit_opacity": 1, "sh": 1, "sh_rest": 1,
+                     "logit_specular": 1, "logit_transparency": 1, "normals": 1})
+        adam._state("interface", sets["interface"])
+        strat = Strategy.for_config(cfg, extent=1.0, rng=np.random.default_rng(0))
+        counts = []
+        for it in (99, 299, 499):  # the steps after iterations 100, 300, 500
+            m = len(sets["interface"])
+            strat.accumulate("interface", m, np.ones((m, 3)), np.ones(m))
+            strat.step_post(it, sets, ["interface"], adam, {"interface": m}, densify=True, reset=False)
+            counts.append(len(sets["interface"]))
+        return strat, counts
+
+    strat, counts = grown("linear")
+    assert counts == [20, 30, 40]  # cap 20 + p x (40 - 20) for p = 0, 0.5, 1
+    assert [strat.cap(i) for i in (0, 100, 300, 500, 900)] == [20, 20, 30, 40, 40]
+    again = Strategy.for_config(tiny_cfg(
+        iterations=1000, epochs=0.0, densify_from=0.1, densify_until=0.5, max_gaussians=40, cap_schedule="linear"),
+        extent=1.0, rng=np.random.default_rng(0))
+    assert again.cap(300) == 40  # no start count yet: the whole budget
+    again.load_state_dict(strat.state_dict())
+    assert again.cap(300) == 30
+    _, counts = grown("fixed")
+    assert counts == [40, 40, 40]
+    with pytest.raises(ConfigError, match="cap_schedule"):
+        tiny_cfg(cap_schedule="quadratic")
+
+
 def test_patch_losses():
     p, P = 4, 3
     x = mi.Color3f(*[mi.Float(np.random.default_rng(k).uniform(0, 1, P * p * p)) for k in range(3)])

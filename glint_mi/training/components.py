@@ -73,7 +73,7 @@ class ComponentsPolicy:
         # blend: with both extra sets gone GLINT's Fresnel weights give everything to the diffuse term, the same
         # image as plain alpha compositing up to float rounding; the 3dgs blend makes it bit for bit the 3dgs method
         fields = ("kernel", "blend", "w_l1", "w_dssim", "w_consistency", "normal_weight", "clone_opacity",
-                  "split_mode") + (
+                  "split_mode", "cap_schedule") + (
             ("w_sfm_depth",) if c.no_glass == "3dgs" else ())
         return {**{k: m[k] for k in fields}, "normal_source": "axis"}  # 3DGS's ellipsoids: their own axis
 

@@ -39,6 +39,7 @@ class Strategy:
         self.events: list[Event] = []
         self.resets = 0
         self.last_reset = -10 ** 9
+        self.start_count: int | None = None  # every set's Gaussians at the first densify step (cap_schedule)
 
     @classmethod
     def for_config(cls, cfg, extent: float, rng: np.random.Generator) -> "Strategy":
@@ -64,6 +65,17 @@ class Strategy:
         c = self.cfg
         return c.densify_until if c.grow_until == -1 else c.grow_until
 
+    def cap(self, it: int) -> int:
+        """The Gaussian budget (every set together) at iteration ``it``: ``max_gaussians`` (``cap_schedule:
+        fixed``, or before the first densify step), or (``linear``) the count at the first densify step plus the
+        share of the rest that the growth window has run by ``it``: ``max_gaussians`` at its end."""
+        c = self.cfg
+        if c.cap_schedule == "fixed" or self.start_count is None or self.start_count >= c.max_gaussians:
+            return c.max_gaussians
+        a, b = self.at(c.densify_from), self.at(self.grow_until())
+        p = min(1.0, max(0.0, (it - a) / max(1, b - a)))
+        return int(round(self.start_count + p * (c.max_gaussians - self.start_count)))
+
     def due(self, it: int) -> tuple[bool, bool]:
         """(densify, reset): what the structure step after iteration ``it`` does."""
         c, nxt = self.cfg, it + 1
@@ -78,6 +90,8 @@ class Strategy:
         ``sizes``: every kept set's size (the Gaussian budget counts them together)."""
         nxt = it + 1
         if densify:
+            if self.start_count is None:
+                self.start_count = sum(sizes.values())
             floor = self.floor()
             for role in roles:
                 others = sum(n for r, n in sizes.items() if r != role)
@@ -137,7 +151,7 @@ class Strategy:
         a = gset.activated()
         g = self.mean_grad(role)
         smax = a["scales"][:, :2].max(1) if self.kernel == "surfel" else a["scales"].max(1)
-        room = max(0, cfg.max_gaussians - n - others)
+        room = max(0, self.cap(it) - n - others)
         seen = self.count[role] > 0
         top = np.quantile(g[seen], 1.0 - cfg.densify_top) if seen.any() else np.inf
         # Right after an opacity reset (to 0.01) every Gaussian is below a paper-style threshold (0.05): for half a
@@ -215,7 +229,8 @@ class Strategy:
         self.events.append(Event(it, role, size=len(gset), what="reset"))
 
     def state_dict(self) -> dict:
-        out = {"resets": np.array(self.resets), "last_reset": np.array(self.last_reset)}
+        out = {"resets": np.array(self.resets), "last_reset": np.array(self.last_reset),
+               "start_count": np.array(-1 if self.start_count is None else self.start_count)}
         for role in self.grad_sum:
             out[f"{role}/grad_sum"], out[f"{role}/count"] = self.grad_sum[role], self.count[role]
         return out
@@ -223,6 +238,8 @@ class Strategy:
     def load_state_dict(self, arrays: dict) -> None:
         self.resets = int(arrays.get("resets", 0))
         self.last_reset = int(arrays.get("last_reset", -10 ** 9))
+        start = int(arrays.get("start_count", -1))
+        self.start_count = None if start < 0 else start
         for key, v in arrays.items():
             if key.endswith("/grad_sum"):
                 role = key.split("/")[0]
