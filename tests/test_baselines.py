@@ -171,7 +171,7 @@ def test_bench_preset_draws_early_patches_from_coarser_images_for_every_method()
 def test_only_glint_shares_a_clones_coverage_and_only_at_the_bench_preset():
     """clone_opacity: shared (docs/results/coarse_to_fine, forty-seventh session) is GLINT's at the bench preset, where
     it was decided; every baseline and glint-paper keep 3DGS's copy there (a baseline is what its paper is), and the
-    other presets keep copy for every method; every baseline names 3DGS's split."""
+    other presets keep copy for every method; every baseline names 3DGS's split and its fixed Gaussian budget."""
     from glint_mi.methods import METHODS
 
     ours = {m for m in METHODS if m == "glint" or (m.startswith("glint-") and m != "glint-paper")}
@@ -189,3 +189,9 @@ def test_only_glint_shares_a_clones_coverage_and_only_at_the_bench_preset():
     for m in set(METHODS) - ours:
         assert flatten(METHODS[m].overrides).get("split_mode") == "sample", m
     assert ComponentsPolicy(config_for("glint", "bench")).no_glass_profile()["split_mode"] == "sample"
+    # and 3DGS's budget, whole from the start, even where GLINT's cap rises over the growth window
+    for m in set(METHODS) - ours:
+        assert flatten(METHODS[m].overrides).get("cap_schedule") == "fixed", m
+    linear = config_for("glint", "converged", cap_schedule="linear")
+    assert linear.cap_schedule == "linear"
+    assert ComponentsPolicy(linear).no_glass_profile()["cap_schedule"] == "fixed"
