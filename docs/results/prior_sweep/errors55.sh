@@ -5,8 +5,10 @@
 # w_sfm_depth=0, one thread). A finished run is skipped.
 #   bash docs/results/prior_sweep/errors55.sh ROOM NAME       (7301 realistic-v1_e2.0, or 7302 see_0.2)
 # DATA (the tuning rooms; levels_ROOM/ beside them), RUNS and WT (the code: a worktree) from the environment.
-# Folders RUNS/b55_NAME_ROOM.
+# Folders RUNS/TAG_NAME_ROOM (TAG: b55). SETS (e.g. "--set clone_opacity=copy") is added to the command: the
+# fifty-sixth session's runs that take today's changes back one at a time.
 set -u
+TAG=${TAG:-b55}; SETS=${SETS:-}
 WT=${WT:-/work/wt55}; PY=${PY:-/work/main/.venv/bin/python}; DATA=${DATA:-/work/data73}; RUNS=${RUNS:-/work/runs55}
 room=${1:?ROOM: 7301 or 7302}; name=${2:?NAME: realistic-v1_e2.0 or see_0.2}
 source "$(dirname "$0")/levels.sh"
@@ -16,7 +18,7 @@ case $name in
   *_e*) LEVELS="$DATA/levels_$room" level $name $room --model ${name%_e*} --error-scale ${name##*_e} || exit 1 ;;
   *) echo "unknown level '$name'" >&2; exit 2 ;;
 esac
-echo "=== $(date -u +%FT%TZ) glint $name $room (40 epochs)"
+echo "=== $(date -u +%FT%TZ) glint $name $room (40 epochs) $SETS"
 $PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40 \
-    --methods priors,glint --data "$DATA/levels_$room/$name" --out "$RUNS/b55_${name}_$room"
+    $SETS --methods priors,glint --data "$DATA/levels_$room/$name" --out "$RUNS/${TAG}_${name}_$room"
 echo "=== rc=$? $(date -u +%FT%TZ)"
