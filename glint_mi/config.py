@@ -260,6 +260,10 @@ class ScheduleConfig:
     #                                      the iterations from images at 1/4 of the run's size, the next 20 % at
     #                                      1/2, the rest at full size ("": full size throughout; the bench preset
     #                                      sets "4:0.2,2:0.2" for every method; issue 66)
+    coarse_min_side: int = 0             # coarse_to_fine's levels at which the smallest training view's shorter side
+    #                                      would be under this many pixels are left out, the next finer level
+    #                                      starting in their place (27: none smaller than the bench preset's 1/4 of
+    #                                      192 x 108, where the coarse start was tuned); 0: every level
 
 
 @dataclasses.dataclass
@@ -505,6 +509,8 @@ class TrainConfig:
         need(not levels or self.depth_align != "image", "coarse_to_fine",
              "depth_align image refits the full-size images' priors only: use depth_align sfm or batch with it, "
              "or --set coarse_to_fine= (full size throughout; the bench preset sets it)")
+        need(isinstance(self.coarse_min_side, int) and self.coarse_min_side >= 0, "coarse_min_side",
+             "is a number of pixels (an integer >= 0; 0 keeps every coarse_to_fine level)")
         need(self.normal_loss in ("cos", "l1_cos"), "normal_loss", "use cos (the paper) or l1_cos")
         need(self.normal_early in ("off", "unmasked"), "normal_early", "use off or unmasked (the paper)")
         need(self.eval_depth in ("expected", "median", "first_surface"), "eval_depth",
@@ -591,6 +597,15 @@ class TrainConfig:
         if end >= 1:
             raise ValueError(f"the coarse levels' shares add up to {end:g}: leave part of the run at full size (< 1)")
         return out
+
+    def coarse_levels(self, width: int, height: int) -> tuple[list[tuple[int, float]], list[int]]:
+        """``pyramid()`` for training views whose smallest is ``width`` x ``height``: (the levels kept, the factors
+        left out by ``coarse_min_side``). Coarser levels are smaller, so those left out are the first ones; the first
+        level kept draws from the run's start (the ``until`` of each level is unchanged)."""
+        kept, out = [], []
+        for f, until in self.pyramid():
+            (out.append(f) if min(width // f, height // f) < self.coarse_min_side else kept.append((f, until)))
+        return kept, out
 
     def with_budget(self, train_pixels: int) -> "TrainConfig":
         """This config with ``iterations`` = epochs x train_pixels / rays per iteration (unchanged when epochs is 0);

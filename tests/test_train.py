@@ -1648,3 +1648,33 @@ def test_coarse_to_fine_draws_early_patches_from_coarser_images(room, tmp_path, 
         Trainer(tmp_path / "c", tiny_cfg(iterations=4, patch=8, coarse_to_fine="4:0.5"), scene=spec,
                 log=lambda *a: None)
     assert not (tmp_path / "c").exists()
+
+
+def test_coarse_min_side_leaves_out_the_levels_too_small_to_train_on(room, tmp_path):
+    """``coarse_min_side``: a coarse_to_fine level whose smallest training view would be under that many pixels on
+    its shorter side is left out, the next finer level drawing from the run's start; the report and the log say
+    which; a level left out is not checked against the patch; 0 keeps every level; a bad value is refused."""
+    cfg = tiny_cfg(coarse_to_fine="4:0.2,2:0.2")
+    assert cfg.coarse_levels(96, 54) == ([(4, 0.2), (2, pytest.approx(0.4))], [])  # 0: every level
+    assert cfg.replace(coarse_min_side=27).coarse_levels(96, 54) == ([(2, pytest.approx(0.4))], [4])  # 13 < 27
+    assert cfg.replace(coarse_min_side=27).coarse_levels(192, 108) == cfg.coarse_levels(192, 108)  # 27: kept
+    assert cfg.replace(coarse_min_side=28).coarse_levels(96, 54) == ([], [4, 2])
+    assert cfg.replace(coarse_min_side=27).coarse_levels(54, 96) == ([(2, pytest.approx(0.4))], [4])  # portrait
+    for bad in (-1, 2.5):
+        with pytest.raises(ConfigError, match="coarse_min_side"):
+            cfg.replace(coarse_min_side=bad)
+    spec = read_scene(room.parent / "scene.xml")
+    lines = []
+    probe = Trainer(tmp_path / "p", tiny_cfg(iterations=8, patches=4, patch=4), scene=spec, log=lambda *a: None)
+    least = min(min(v.width, v.height) for v in probe.ds.train_views)
+    assert least // 8 < 4 <= least // 2  # the room: a 1/8 level is smaller than the 4 x 4 patch, 1/2 is not
+    kw = dict(iterations=8, patches=4, patch=4, coarse_to_fine="8:0.25,2:0.25", coarse_min_side=least // 2)
+    a = Trainer(tmp_path / "a", tiny_cfg(**kw), scene=spec, log=lines.append)  # 1/8 would be refused (patch)
+    (until, coarse), = a.coarse
+    assert until == 4 and coarse.sizes[0][0] in (v.height // 2 for v in a.ds.train_views)
+    assert [e["factor"] for e in a.report["coarse_to_fine_left_out"]] == [8]
+    assert [e["factor"] for e in a.report["coarse_to_fine"]] == [2]
+    assert any("1/8 size left out" in ln and "coarse_min_side" in ln for ln in lines), lines
+    b = Trainer(tmp_path / "b", tiny_cfg(**{**kw, "coarse_min_side": least // 2 + 1}), scene=spec,
+                log=lambda *a: None)
+    assert b.coarse == [] and [e["factor"] for e in b.report["coarse_to_fine_left_out"]] == [8, 2]

@@ -34,17 +34,22 @@ def parts_for(cfg) -> list:
     return [part() for part in PARTS if part.applies(cfg)]
 
 
+def smallest_view(ds):
+    """The training view with the shortest side (what a patch and coarse_to_fine's levels must fit)."""
+    return min(ds.train_views, key=lambda v: min(v.width, v.height))
+
+
 def check_patch(cfg, ds) -> None:
     """Refuse a patch that does not fit in a training view (a large downscale leaves small images), before the run
     folder is made."""
     from glint_mi.config import ConfigError
 
-    small = min(ds.train_views, key=lambda v: min(v.width, v.height))
+    small = smallest_view(ds)
     if cfg.patch > min(small.width, small.height):
         raise ConfigError(f"'patch' = {cfg.patch}: a {cfg.patch} x {cfg.patch} patch does not fit in training view "
                           f"'{small.name}' ({small.width} x {small.height} at downscale {cfg.downscale}); use "
                           f"--set patch={max(3, min(small.width, small.height))} or a smaller downscale.")
-    for f, _ in cfg.pyramid():  # coarse_to_fine's levels: the dataset read at f x the downscale (sizes floor)
+    for f, _ in cfg.coarse_levels(small.width, small.height)[0]:  # the dataset read at f x the downscale (floor)
         w, h = small.width // f, small.height // f
         if cfg.patch > min(w, h):
             raise ConfigError(f"'coarse_to_fine' = {cfg.coarse_to_fine!r}: at 1/{f} of the run's size training view "
@@ -129,18 +134,25 @@ def coarse_banks(tr) -> None:
     points and tracks, and its inputs prepared as the full-size bank's (priors aligned, the see-through cue, the SfM
     depth)."""
     tr.coarse = []
-    for f, until in tr.cfg.pyramid():
+    least = smallest_view(tr.ds)
+    levels, left_out = tr.cfg.coarse_levels(least.width, least.height)
+    if left_out:
+        tr.report["coarse_to_fine_left_out"] = [{"factor": f, "size": [least.width // f, least.height // f]}
+                                                for f in left_out]
+        tr.log("coarse to fine: " + ", ".join(f"1/{f} size left out ({least.width // f} x {least.height // f}, "
+                                              f"under coarse_min_side {tr.cfg.coarse_min_side})" for f in left_out))
+    for f, until in levels:
         ds = load_dataset(tr.ds.root, **{**tr.ds.options, "downscale": tr.cfg.downscale * f})
         ds.points, ds.colors, ds.sparse, ds.tracks_distorted = (tr.ds.points, tr.ds.colors, tr.ds.sparse,
                                                                 tr.ds.tracks_distorted)
-        small = min(ds.train_views, key=lambda v: min(v.width, v.height))  # checked against the patch before
+        small = smallest_view(ds)  # checked against the patch before
         bank = training_inputs(ds, tr.cfg, "transmission" in tr.sets, {}, log=lambda *a: None)
         tr.coarse.append((int(round(until * tr.cfg.iterations)), bank))
         tr.report.setdefault("coarse_to_fine", []).append(
             {"factor": f, "until_iteration": tr.coarse[-1][0], "size": [small.width, small.height]})
     if tr.coarse:
         tr.log("coarse to fine: " + ", ".join(f"1/{f} size until iteration {it}" for (f, _), (it, _) in
-                                              zip(tr.cfg.pyramid(), tr.coarse)))
+                                              zip(levels, tr.coarse)))
 
 
 def set_budget(tr):
