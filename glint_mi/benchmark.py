@@ -47,6 +47,25 @@ def scenes_in(data: Path) -> list[Path]:
 PRIORS_ROW = "priors"  # not a method: the dataset's prior maps scored as they are
 
 
+def aligned_prior_depth(bank, i: int, gt_depth: np.ndarray) -> tuple[np.ndarray, bool]:
+    """View ``i``'s depth prior in ``bank`` (``align_depth_priors`` done) as metric depth [H, W], aligned as GLINT's
+    loss aligns it: the scale and shift fitted to the SfM points the view sees; where the view has too few points,
+    the best affine fit to ``gt_depth`` instead (favours the prior; the bool says it was used). 0 where the prior
+    is invalid."""
+    h, w = bank.sizes[i]
+    P = bank.priors["depth"][bank.offsets[i]:bank.offsets[i + 1], 0].reshape(h, w).astype(np.float64)
+    wq, fitted = bank.depth_affine[i], False
+    if not np.isfinite(wq[0]):
+        m = (P > 0) & (gt_depth > 0)
+        x = 1.0 / gt_depth[m] if bank.depth_inverse else gt_depth[m]
+        (a, b), *_ = np.linalg.lstsq(np.column_stack([x, np.ones(m.sum())]), P[m], rcond=None)
+        wq, fitted = (a, b), True
+    z = (P - wq[1]) / wq[0]
+    if bank.depth_inverse:
+        z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), 0.0)
+    return np.where(P > 0, z, 0.0), fitted
+
+
 def score_priors(scene_dir: Path, out: Path | None = None) -> dict:
     """The ``priors`` row: each test view's depth and normal priors read straight from the maps, the depth aligned
     as GLINT's loss aligns it (scale and shift fitted to the metric SfM points the view sees; a per-image fit to
@@ -67,18 +86,9 @@ def score_priors(scene_dir: Path, out: Path | None = None) -> dict:
     for i, v in enumerate(views):
         gt = v.load_gt()
         h, w = bank.sizes[i]
-        sl = slice(bank.offsets[i], bank.offsets[i + 1])
-        P = bank.priors["depth"][sl, 0].reshape(h, w).astype(np.float64)
-        wq = bank.depth_affine[i]
-        if not np.isfinite(wq[0]):  # too few SfM points in this view: the best affine fit (favours the prior)
-            m = (P > 0) & (gt["depth"] > 0)
-            x = 1.0 / gt["depth"][m] if bank.depth_inverse else gt["depth"][m]
-            (a, b), *_ = np.linalg.lstsq(np.column_stack([x, np.ones(m.sum())]), P[m], rcond=None)
-            wq, gt_fit = (a, b), gt_fit + 1
-        z = (P - wq[1]) / wq[0]
-        if bank.depth_inverse:
-            z = np.where(z > 0, 1.0 / np.maximum(z, 1e-12), 0.0)
-        pred = {"depth": np.where(P > 0, z, 0.0), "normal": bank.prior_normals_world(i), "transparency": np.zeros((h, w))}
+        depth, fitted = aligned_prior_depth(bank, i, gt["depth"])
+        gt_fit += fitted
+        pred = {"depth": depth, "normal": bank.prior_normals_world(i), "transparency": np.zeros((h, w))}
         m = M.view_metrics({**pred, "rgb": np.zeros((h, w, 3))}, gt, np.zeros((h, w, 3)))
         per_view[v.name] = {k: m[k] for k in ("normal_mae", "normal_mae_glass", "absrel", "absrel_glass")}
     metrics = {**M.mean_metrics(list(per_view.values())), "fps": float("nan"), "train_s": 0.0}

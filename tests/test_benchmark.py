@@ -796,3 +796,64 @@ def test_step_rate_reads_a_runs_own_step_times_from_its_log(tmp_path):
     assert main([str(tmp_path), "--from", "3", "--split", "5"]) == 0
     assert main([str(tmp_path)]) == 2  # --from 300 past the last iteration (9): refused, not an empty median
     assert main([str(tmp_path / "missing")]) == 2
+
+
+def test_train_view_depth_scores_a_run_against_the_priors_it_read(room, tmp_path, monkeypatch):
+    """benchmarks/train_view_depth.py: a finished run rendered at its training views, scored with the benchmark's
+    AbsRel against the same views' depth priors aligned as the priors row aligns them (a helper the row shares).
+    With each view's affine the generator recorded, the prior's figure is that of the map file inverted by hand;
+    a run whose depth is the aligned prior ties it in every view; one whose
+    depth is the ground truth scores 0 and is worse nowhere; a view without an SfM fit is left out, not fitted to
+    the truth."""
+    import glint_mi.evaluation.renders as E
+    from glint_mi.benchmark import aligned_prior_depth
+    from glint_mi.training.batch import RayBank
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+    import train_view_depth as T
+
+    rec = json.loads((room / "priors" / "PRIORS.json").read_text())["views"]
+
+    def recorded(self, points, nan_first=False, **kw):  # the tiny room has too few SfM points a view for the fit
+        self.depth_affine = np.array([[rec[v.name]["depth_scale"], rec[v.name]["depth_shift"]] for v in self.views])
+        if nan_first:
+            self.depth_affine[0] = np.nan
+
+    run = tmp_path / "run"
+    Trainer(run, tiny_cfg(iterations=4, patches=4), scene=read_scene(room.parent / "scene.xml"),
+            log=lambda *a: None).train(progress=False)
+    monkeypatch.setattr(RayBank, "align_depth_priors", recorded)
+    got = T.train_view_depth(run)
+    ds = load_dataset(room)
+    assert [r["view"] for r in got["views"]] == [v.name for v in ds.train_views] and not got["left_out"]
+    for r in got["views"]:
+        assert np.isfinite(r["run"]["absrel"])
+        p = np.load(room / "priors" / "depth" / f"{r['view']}.npy").astype(np.float64)  # the map as written
+        gt = next(v for v in ds.train_views if v.name == r["view"]).load_gt()["depth"]
+        z = (p - rec[r["view"]]["depth_shift"]) / rec[r["view"]]["depth_scale"]
+        m = (gt > 0) & (p > 0)
+        assert r["prior"]["absrel"] == pytest.approx(np.mean(np.abs(z[m] - gt[m]) / gt[m]), rel=1e-6), r
+    assert "| " + str(run) + " | 7 (0 without an SfM fit) | " in T.table([(str(run), got)])
+    # planted depths: the run's renders replaced by the aligned prior, then by the ground truth
+    bank = RayBank(ds.train_views, ds.root)
+    bank.align_depth_priors(ds.points)
+    by_name = {v.name: i for i, v in enumerate(ds.train_views)}
+    real = E.render_view
+
+    def planted(kind):
+        def render(integ, view, **kw):
+            out = real(integ, view, **kw)
+            gt = view.load_gt()
+            out["depth"] = aligned_prior_depth(bank, by_name[view.name], gt["depth"])[0] if kind == "prior" \
+                else gt["depth"]
+            return out
+        return render
+
+    monkeypatch.setattr(E, "render_view", planted("prior"))
+    same = T.train_view_depth(run)
+    assert same["worse"] == 0 and all(r["run"]["absrel"] == r["prior"]["absrel"] for r in same["views"])
+    monkeypatch.setattr(E, "render_view", planted("truth"))
+    exact = T.train_view_depth(run)
+    assert exact["run"]["absrel"] == 0 and exact["worse"] == 0 and exact["prior"]["absrel"] > 0
+    monkeypatch.setattr(RayBank, "align_depth_priors", lambda self, pts: recorded(self, pts, nan_first=True))
+    assert T.train_view_depth(run)["left_out"] == [ds.train_views[0].name]
