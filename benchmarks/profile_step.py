@@ -196,10 +196,7 @@ def banks(tr: Trainer, steps_per_block: int, blocks: int = 3) -> list[dict]:
     coarse levels and the full-size one) in alternating blocks; median step seconds and, on one batch of each, the
     hits per ray and the forward's traversal time. The rays a step are the same in every bank; what differs is
     the images a patch is cut from (a coarse patch spans more of the view)."""
-    from glint_mi.training.builder import smallest_view
-
-    least = smallest_view(tr.ds)  # the levels coarse_min_side keeps, as the run's banks
-    pyramid = [f"1/{f}" for f, _ in tr.cfg.coarse_levels(least.width, least.height)[0]]
+    pyramid = [f"1/{e['factor']}" for e in tr.report.get("coarse_to_fine", [])]  # the levels the run's banks hold
     named = list(zip(pyramid, (b for _, b in tr.coarse))) + [("full size", tr.bank)]
     try:
         times = alternating(tr, [(name, lambda tr, bank=bank: setattr(tr, "bank_now", lambda: bank))

@@ -1636,6 +1636,7 @@ def test_coarse_to_fine_draws_early_patches_from_coarser_images(room, tmp_path, 
             b.train(progress=False)
         b2 = Trainer(tmp_path / "b", tiny_cfg(**kw), resume=True, log=lambda *a: None)
         assert b2.it == 4 and b2.coarse[0][0] == 6
+        assert [e["factor"] for e in b2.report["coarse_to_fine"]] == [2]  # not listed again on resume
         b2.train(progress=False)
         for role in a.sets:
             for f in RAW_FIELDS:

@@ -134,6 +134,7 @@ def coarse_banks(tr) -> None:
     points and tracks, and its inputs prepared as the full-size bank's (priors aligned, the see-through cue, the SfM
     depth)."""
     tr.coarse = []
+    tr.report.pop("coarse_to_fine", None)  # written afresh: a resumed run's report holds the last segment's list
     least = smallest_view(tr.ds)
     levels, left_out = tr.cfg.coarse_levels(least.width, least.height)
     if left_out:
