@@ -249,6 +249,9 @@ class ScheduleConfig:
     transmission_from: float = 5 / 60    # release: 1k
     reflection_from: float = 5 / 60      # release: 3k
     refine_from: float = 40 / 60         # interface frozen after this (supplement); 1.0 = never (release)
+    secondary_until: float = 1.0         # the transmission and reflection sets frozen after this, the interface
+    #                                      trained on (the refine stage's mirror image; issue 66: the glass pixels'
+    #                                      test views lose with epochs while their training views gain); 1.0 = never
     normal_from: float = 10 / 60
     consistency_from: float = 0.0        # depth-normal consistency from here (GLINT: the start; 2DGS: 7k of 30k)
     dist_from: float = 0.1               # depth distortion from here (2DGS: 3k of 30k)
@@ -557,10 +560,13 @@ class TrainConfig:
         need(self.prior_decay_ref == 0 or self.prior_decay_terms == "normal", "prior_decay_ref",
              "sets the normal prior's floor from its agreement with the SfM points: use it with prior_decay_terms: "
              "normal, or set prior_decay_ref=0 to let the depth prior fall too")
-        for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "normal_from", "trans_from",
-                  "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from", "dist_from",
-                  "prior_decay"):
+        for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "secondary_until", "normal_from",
+                  "trans_from", "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from",
+                  "dist_from", "prior_decay"):
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
+        need(self.refine_from >= 1.0 or self.secondary_until >= 1.0, "secondary_until",
+             "freezes the transmission and reflection sets, refine_from the interface: with both, the end of the run "
+             "trains nothing; set one of them to 1.0")
         need(self.clone_opacity in ("copy", "shared"), "clone_opacity",
              "use copy (a clone keeps its parent's opacity, 3DGS) or shared (the pair covers what the parent did)")
         need(self.cap_schedule in ("fixed", "linear"), "cap_schedule",

@@ -156,6 +156,15 @@ def test_stage_schedule(variant):
         assert config_for("glint-paper", "tiny").refine_from == sup.refine_from  # the paper's choices keep it
         assert config_for("glint", "tiny").refine_from == config_for("tsgs", "tiny").refine_from == 1.0
     assert [stage(at(c.sh_every) * k)["sh_degree"] for k in range(4)] == [0, 1, 2, 2]
+    if variant != "supplement":  # secondary_until: the transmission and reflection sets frozen, the interface not
+        fr = SimpleNamespace(**{**vars(fake), "cfg": c.replace(secondary_until=0.5)})
+        assert Trainer.stage(fr, at(0.5) - 1)["trained"] == {"interface", "transmission", "reflection"}
+        late = Trainer.stage(fr, at(0.5))
+        assert late["trained"] == {"interface"} and late["traced"] == {"interface", "transmission", "reflection"}
+        with pytest.raises(ConfigError, match="'secondary_until'.*trains nothing"):  # with the refine stage: nothing
+            c.replace(secondary_until=0.9, refine_from=0.8)
+        with pytest.raises(ConfigError, match="'secondary_until' = 1.5: is a fraction"):
+            c.replace(secondary_until=1.5)
     assert stage(0)["depth"] and stage(0)["consistency"]
     fake.dropped = {"transmission": "x", "reflection": "y"}  # dropped sets are never traced again
     assert stage(599)["traced"] == {"interface"} and not stage(599)["trans"]

@@ -160,6 +160,8 @@ class Trainer:
         trained = set(traced)
         if c.refine_from < 1.0 and on(c.refine_from) and len(traced) > 1:
             trained.discard("interface")  # supplement: the interface is frozen in the refine stage
+        if c.secondary_until < 1.0 and on(c.secondary_until):
+            trained -= {"transmission", "reflection"}  # traced (they still shape the image), no longer fitted
         has_t = "transmission" in traced
         gt_masks = c.trans_masks in ("gt", "prior")  # masks given from outside (TSGS)
         st = {"traced": traced, "trained": trained, "name": "warm-up" if traced == {"interface"} and not on(c.warmup)
