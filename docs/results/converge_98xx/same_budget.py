@@ -20,7 +20,7 @@ ROOMS = ("9801", "9802", "9803", "9804")
 KEYS = ("psnr", "psnr_glass", "psnr_off_glass")
 # (method, epochs) -> the groups holding its runs (seed 0 and seed 1 may sit in different groups)
 GROUPS = {("glint", 60): [G / "s54_d54"], ("glint", 120): [G / "s55_e120", G / "s56_e120"],
-          ("3dgs", 60): [G / "e60_grow", G / "e60_grow_s1"], ("3dgs", 120): [G / "e120_grow_b"]}
+          ("3dgs", 60): [G / "e60_grow", G / "e60_grow_s1"], ("3dgs", 120): [G / "e120_grow_b", G / "s57_3dgs120"]}
 
 
 def find(method: str, epochs: int, room: str, seed: int) -> dict | None:
