@@ -163,8 +163,9 @@ def stopped(points: dict, capacities: list[str], tol: float):
 
 def compare(glint_rows, rows):
     """GLINT minus a method on the (room, seed) runs both have: the mean differences (PSNR overall, on and off the
-    glass, normal MAE), how many runs GLINT is higher in, the PSNR difference by seed ({seed: (mean, rooms)}) and the
-    standard error of the mean PSNR difference (paired; nan with one pair). None without a common run."""
+    glass, normal MAE), how many runs GLINT is higher in (``wins``; on the glass: ``wins_glass``), the PSNR difference
+    by seed ({seed: (mean, rooms)}) and the standard error of the mean PSNR difference (paired; nan with one pair).
+    None without a common run."""
     g = {(r["scene"], r["seed"]): r for r in glint_rows}
     pairs = [(g[(r["scene"], r["seed"])], r) for r in rows if (r["scene"], r["seed"]) in g]
     if not pairs:
@@ -177,7 +178,8 @@ def compare(glint_rows, rows):
         per_seed[s_] = (statistics.fmean(v), len(v))
     diffs = [a["psnr"] - b["psnr"] for a, b in pairs]
     se = statistics.stdev(diffs) / math.sqrt(len(diffs)) if len(diffs) > 1 else math.nan
-    return {"n": len(pairs), "wins": sum(a["psnr"] > b["psnr"] for a, b in pairs), "mean": d, "per_seed": per_seed,
+    return {"n": len(pairs), "wins": sum(a["psnr"] > b["psnr"] for a, b in pairs),
+            "wins_glass": sum(a["psnr_glass"] > b["psnr_glass"] for a, b in pairs), "mean": d, "per_seed": per_seed,
             "se": se}
 
 

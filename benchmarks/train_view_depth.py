@@ -79,24 +79,21 @@ PHOTO = ("psnr", "psnr_glass", "psnr_off_glass")
 
 
 def train_view_photo(run: Path) -> dict:
-    """{"train": {PHOTO: mean over the training views}, "test": {PHOTO: the run's metrics.json}, "views": n}."""
+    """{"train": {PHOTO: mean over the training views}, "test": {PHOTO: the run's metrics.json}, "views": n}: the
+    training views go through the evaluation's own loop (``evaluate``, nothing written)."""
     import json
 
-    from glint_mi.evaluation import metrics as M
-    from glint_mi.evaluation.renders import load_run, render_view
+    from glint_mi.evaluation.renders import evaluate, load_run
 
     integ, ds, cfg, _ = load_run(run)
     test = json.loads((Path(run) / "metrics.json").read_text())["metrics"]
-    per_view = []
-    for v in ds.train_views:
-        gt = v.load_gt()
-        if gt is None:
-            raise SystemExit(f"{run}: training view {v.name} has no ground truth ({ds.root}); a generated room "
-                             f"has it, a capture does not")
-        per_view.append(M.view_metrics(render_view(integ, v, depth_rule="expected"), gt, v.load_image()))
-    mean = M.mean_metrics(per_view)
-    return {"train": {k: mean[k] for k in PHOTO}, "test": {k: float(test[k]) for k in PHOTO},
-            "views": len(per_view)}
+    bare = [v.name for v in ds.train_views if v.gt_path is None]
+    if bare:
+        raise SystemExit(f"{run}: training view(s) {', '.join(bare[:3])} have no ground truth ({ds.root}); a "
+                         f"generated room has it, a capture does not")
+    ev = evaluate(integ, ds.train_views, write=False)
+    return {"train": {k: ev["metrics"][k] for k in PHOTO}, "test": {k: float(test[k]) for k in PHOTO},
+            "views": ev["views_done"]}
 
 
 def photo_table(results: list[tuple[str, dict]]) -> str:

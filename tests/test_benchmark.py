@@ -342,6 +342,8 @@ def test_converge_table_compares_glint_seed_by_seed():
     assert abs(c["mean"]["psnr"] - 0.5) < 1e-12 and abs(c["mean"]["psnr_glass"] - 0.5) < 1e-12
     assert abs(c["se"] - 0.8660254037844386 / 3 ** 0.5) < 1e-9  # stdev of (-0.5, 1, 1) over sqrt(3)
     assert converge_table.compare(g, [row("z", 0, 1.0)]) is None
+    one = converge_table.compare(g, [{**row("a", 1, 30.0), "psnr_glass": 30.0}])  # higher overall, lower on glass
+    assert (one["wins"], one["wins_glass"]) == (1, 0) and c["wins_glass"] == 2
     assert abs(converge_table.seed_spread(g) - 1.0) < 1e-12  # |31-30| and |31-32|
     assert converge_table.seed_spread([row("a", 0, 30.0)]) != converge_table.seed_spread([row("a", 0, 30.0)])  # nan
 

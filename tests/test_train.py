@@ -1685,17 +1685,15 @@ def test_secondary_until_freezes_the_transmission_and_reflection_sets(room, tmp_
     """``secondary_until``: from that fraction of the run the transmission and reflection sets are traced but no
     longer fitted (no Adam step, no reset, no densification): every parameter stays as it was at that iteration,
     while the interface keeps training."""
-    fields = ("means", "log_scales", "quats_wxyz", "logit_opacity", "sh", "logit_specular", "logit_transparency")
     tr = Trainer(tmp_path / "run", tiny_cfg(iterations=40, components="all", secondary_until=0.5),
                  scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
     tr.train(progress=False, until=20)  # the freeze starts at iteration 20 (the reset at 24 would move them too)
     tr.sync()
-    snap = {r: {f: np.array(getattr(tr.sets[r], f)) for f in fields} for r in ("interface", "transmission",
-                                                                              "reflection")}
+    snap = {r: {f: np.array(getattr(tr.sets[r], f)) for f in RAW_FIELDS} for r in tr.sets}
     tr.train(progress=False)
     tr.sync()
     assert tr.stage(39)["traced"] == {"interface", "transmission", "reflection"}
     for role in ("transmission", "reflection"):
-        for f in fields:
+        for f in RAW_FIELDS:
             np.testing.assert_array_equal(getattr(tr.sets[role], f), snap[role][f], err_msg=f"{role}.{f}")
     assert not np.array_equal(tr.sets["interface"].means, snap["interface"]["means"])
