@@ -112,6 +112,8 @@ class OptimConfig:
     lr_env: float = 0.002                # refgs: the grid's learning rate (Ref-GS's encoding_lr)
     lr_position: float = 1.6e-4
     lr_position_final: float = 1.6e-6
+    lr_position_until: float = 1.0       # the fraction of the run where the position rate reaches lr_position_final
+    #                                      (log-linear from lr_position) and holds; 1.0: it falls over the whole run
     lr_scale: float = 5e-3
     lr_rotation: float = 1e-3
     lr_normal: float = 2e-3              # normal_source: attribute; twice lr_rotation (a unit quaternion turns its
@@ -551,6 +553,8 @@ class TrainConfig:
         for name, v in self.flat().items():
             if name.startswith(("w_", "lr_")):
                 need(isinstance(v, (int, float)) and v >= 0, name, "must be a number >= 0")
+        need(0.0 < self.lr_position_until <= 1.0, "lr_position_until",
+             "is the fraction of the run (0, 1] where the position rate reaches lr_position_final (1.0: the run's end)")
         need(self.prior_decay_terms in ("depth,normal", "normal", "depth"), "prior_decay_terms",
              "use depth,normal, normal or depth")
         need(math.isfinite(self.depth_prior_ref) and self.depth_prior_ref >= 0, "depth_prior_ref",

@@ -173,6 +173,24 @@ def test_stage_schedule(variant):
     assert not stage(at(c.normal_from) - 1)["normal"] and stage(at(c.normal_from))["normal"]
 
 
+def test_position_rate_falls_log_linearly_to_lr_position_until_and_holds():
+    """The position learning rate (a multiple of lr_position): 1 at the start, lr_position_final / lr_position at
+    ``lr_position_until`` of the run, held after; halfway in log space at half that fraction. 1.0 is 3DGS's
+    schedule over the whole run."""
+    from glint_mi.training.trainer import position_rate
+
+    c = TrainConfig.for_preset("tiny", iterations=101, lr_position=1e-4, lr_position_final=1e-6)
+    assert c.lr_position_until == 1.0
+    assert [position_rate(c, i) for i in (0, 50, 100)] == pytest.approx([1.0, 0.1, 0.01], rel=1e-12)
+    h = c.replace(lr_position_until=0.5)
+    assert [position_rate(h, i) for i in (0, 25, 50, 75, 100)] == pytest.approx([1.0, 0.1, 0.01, 0.01, 0.01],
+                                                                                rel=1e-12)
+    assert position_rate(h, 49) > position_rate(h, 50) == position_rate(h, 51)
+    for bad in (0.0, 1.5, -0.2):
+        with pytest.raises(ConfigError, match="'lr_position_until'"):
+            c.replace(lr_position_until=bad)
+
+
 def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
     """2DGS as its release trains it: depth distortion (lambda 10) from 3k of 30k iterations, normal consistency
     (0.05) on the median depth from 7k; GLINT has neither the distortion nor the delay. One training step of the

@@ -61,6 +61,14 @@ def budget_full(out: dict, max_hits: int, read: bool = True):
     return share
 
 
+def position_rate(c, it: int) -> float:
+    """The position learning rate at iteration ``it`` as a multiple of ``lr_position``: log-linear from 1 to
+    ``lr_position_final / lr_position`` at ``lr_position_until`` of the run, held there after (3DGS's schedule when
+    it is 1.0)."""
+    frac = min(it / max(c.iterations - 1, 1) / c.lr_position_until, 1.0)
+    return float(np.exp((1 - frac) * np.log(c.lr_position) + frac * np.log(c.lr_position_final)) / c.lr_position)
+
+
 class Trainer:
     def __init__(self, run_dir: str | Path, cfg: TrainConfig, scene: OptimScene | None = None,
                  dataset: Dataset | None = None, log=print, resume: bool = False):
@@ -282,8 +290,7 @@ class Trainer:
         import drjit as dr
 
         c = self.cfg
-        frac = self.it / max(c.iterations - 1, 1)
-        lr_pos = np.exp((1 - frac) * np.log(c.lr_position) + frac * np.log(c.lr_position_final)) / c.lr_position
+        lr_pos = position_rate(c, self.it)
         for part in self.parts:  # a method's own parameters (Ref-GS's grid)
             part.step(self)
         if self.dev is not None:
