@@ -1697,3 +1697,25 @@ def test_secondary_until_freezes_the_transmission_and_reflection_sets(room, tmp_
         for f in RAW_FIELDS:
             np.testing.assert_array_equal(getattr(tr.sets[role], f), snap[role][f], err_msg=f"{role}.{f}")
     assert not np.array_equal(tr.sets["interface"].means, snap["interface"]["means"])
+
+
+def test_lr_position_until_holds_the_positions_rate_at_its_final_value(room, tmp_path):
+    """``lr_position_until``: the position rate reaches ``lr_position_final`` at that fraction of the run and
+    holds. With a final rate of 1e-20 reached at iteration 1, the Gaussians' positions no longer move between
+    iterations 5 and 15 (no structure step before 20) while every other parameter trains; with the rate falling over
+    the whole run (the default) they move."""
+    moved = {}
+    for until in (1.0, 0.025):
+        tr = Trainer(tmp_path / f"run{until}", tiny_cfg(iterations=40, lr_position_final=1e-20 * 1.6e-4,
+                                                        lr_position=1.6e-4, lr_position_until=until, densify_from=0.5),
+                     scene=read_scene(room.parent / "scene.xml"), log=lambda *a: None)
+        tr.train(progress=False, until=5)
+        tr.sync()
+        before = {f: np.array(getattr(tr.sets["interface"], f)) for f in ("means", "logit_opacity")}
+        tr.train(progress=False, until=15)
+        tr.sync()
+        after = {f: np.array(getattr(tr.sets["interface"], f)) for f in before}
+        assert after["means"].shape == before["means"].shape  # no densification or pruning in the window
+        moved[until] = {f: float(np.abs(after[f] - before[f]).max()) for f in before}
+    assert moved[1.0]["means"] > 1e-6 and moved[0.025]["means"] == 0.0, moved
+    assert moved[0.025]["logit_opacity"] > 1e-4, moved
