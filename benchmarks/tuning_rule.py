@@ -16,7 +16,10 @@ A room may carry a level, ``ROOM@LEVEL`` (a room under one setting of a sweep, e
 
 ``--floor METHOD`` (e.g. ``priors``, the benchmark's row of the priors themselves, read from the base folder): the
 switch is adopted only where its normal MAE and AbsRel are at or under that row's in every room (GLINT never ends
-worse than its priors).
+worse than its priors). ``--floor-mode no-farther`` (declared in ``docs/results/coarse_to_fine``, sixtieth session)
+also passes a room where a column of the switch is over the floor but no farther over it than the base's: a floor
+must not keep a default that ends worse than the priors over a switch that ends nearer them (``under``, the default,
+is the former reading).
 
 ``--agree`` defaults to all rooms but one (two of three, three of four, four of five); fewer than ``--min-rooms``
 (3) rooms decide nothing.
@@ -94,12 +97,24 @@ def judge(pairs: dict[str, tuple], agree: int, min_rooms: int = 3) -> dict:
                 stays=within and dpsnr >= -PSNR_COST)
 
 
-def apply_floor(verdict: dict, pairs: dict, floors: dict, method: str) -> dict:
-    """``--floor``: the rooms where the switch's normal MAE or AbsRel is over the floor method's, or where the floor's
-    run is missing (``floor_missed``); with any, the switch is neither adopted nor, under ``--confirm``, kept."""
-    over = lambda r: any(pairs[r][1][c] > floors[r][c] for c in ("normal_mae", "absrel"))
-    missed = [r for r in sorted(pairs) if r not in floors or over(r)]
-    return {**verdict, "floor_method": method, "floor_missed": missed,
+FLOOR_MODES = ("under", "no-farther")
+
+
+def apply_floor(verdict: dict, pairs: dict, floors: dict, method: str, mode: str = "under") -> dict:
+    """``--floor``: the rooms where the switch's normal MAE or AbsRel is over the floor method's (with ``no-farther``:
+    over it and farther over than the base's), or where the floor's run is missing (``floor_missed``); with any, the
+    switch is neither adopted nor, under ``--confirm``, kept. ``floor_over`` names the rooms over the floor at all
+    (the ``under`` reading), whatever the mode, so a report can give both."""
+    if mode not in FLOOR_MODES:
+        raise ValueError(f"--floor-mode {mode!r}: use one of {', '.join(FLOOR_MODES)}")
+    cols = ("normal_mae", "absrel")
+    over_cols = lambda r: [c for c in cols if pairs[r][1][c] > floors[r][c]]
+    farther = lambda r: any(pairs[r][1][c] > max(floors[r][c], pairs[r][0][c]) for c in cols)
+    present = [r for r in sorted(pairs) if r in floors]
+    over = [r for r in present if over_cols(r)]
+    fails = over if mode == "under" else [r for r in present if farther(r)]
+    missed = sorted([r for r in pairs if r not in floors] + fails)
+    return {**verdict, "floor_method": method, "floor_mode": mode, "floor_missed": missed, "floor_over": over,
             "floor_absent": [r for r in missed if r not in floors],
             "adopted": verdict["adopted"] and not missed, "stays": verdict["stays"] and not missed}
 
@@ -127,12 +142,17 @@ def report(name: str, pairs: dict, verdict: dict, agree: int, confirm: bool = Fa
                  else f"**Too few rooms to decide** ({len(rooms)})."), ""]
     if "floor_method" in v:
         absent, m = v["floor_absent"], v["floor_method"]
-        over = [r for r in v["floor_missed"] if r not in absent]
-        lines.insert(-1, f"Floor (`{m}`: normals and AbsRel at or under it in every room): "
-                     + (f"**not met** in {', '.join(over)}. " if over else "")
+        failed = [r for r in v["floor_missed"] if r not in absent]
+        farther = v.get("floor_mode") == "no-farther"
+        what = ("normals and AbsRel at or under it, or no farther over it than the base's, in every room" if farther
+                else "normals and AbsRel at or under it in every room")
+        lines.insert(-1, f"Floor (`{m}`: {what}): "
+                     + (f"**not met** in {', '.join(failed)}. " if failed else "")
                      + (f"**No `{m}` run** for {', '.join(absent)} in the base folder (add it: `python -m "
                         f"glint_mi.benchmark --methods {m}` with the base's --data and --out)." if absent else "")
-                     + ("" if v["floor_missed"] else "met."))
+                     + ("" if v["floor_missed"] else "met.")
+                     + (f" Over `{m}` at all (the `under` reading): {', '.join(v['floor_over']) or 'none'}."
+                        if farther else ""))
     return "\n".join(lines)
 
 
@@ -147,9 +167,14 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="also write the report here (markdown)")
     ap.add_argument("--floor", default=None, metavar="METHOD",
                     help="a method of the base folder (e.g. priors) whose normals and AbsRel the switch must not exceed")
+    ap.add_argument("--floor-mode", default="under", choices=FLOOR_MODES,
+                    help="under: the switch at or under the floor in every room (default); no-farther: or no farther "
+                         "over it than the base")
     ap.add_argument("--confirm", action="store_true",
                     help="the check rule: the switch is an adopted default, the base the one it replaced")
     a = ap.parse_args(argv)
+    if a.floor_mode != "under" and not a.floor:
+        ap.error(f"--floor-mode {a.floor_mode} reads a floor: add --floor METHOD (e.g. --floor priors)")
     rooms = [r.strip() for r in a.rooms.split(",") if r.strip()]
     fill = lambda pattern, r: pattern.format(room=r.partition("@")[0], level=r.partition("@")[2])
     args = list(argv if argv is not None else sys.argv[1:])
@@ -175,7 +200,7 @@ def main(argv=None) -> int:
         agree = a.agree if a.agree is not None else max(len(pairs) - 1, 1)
         verdict = judge(pairs, agree, a.min_rooms)
         if a.floor:
-            verdict = apply_floor(verdict, pairs, floors, a.floor)
+            verdict = apply_floor(verdict, pairs, floors, a.floor, a.floor_mode)
         out.append(report(name, pairs, verdict, agree, a.confirm))
         if missing:
             out.append(f"Left out (no seed finished in both folders): {', '.join(missing)}.\n")

@@ -677,6 +677,23 @@ def test_tuning_rule_judges_a_switch_by_the_written_rule(tmp_path):
     tuning_rule.main(["--confirm", "--rooms", "1@a,2@a,1@b", "--base", str(tmp_path / "sw_{level}"), "--switch",
                       f"on={tmp_path / 'sw_{level}_on'}", "--floor", "priors", "--out", str(out)])
     assert "**Reverts.**" in out.read_text()  # the check rule reads the floor too: over the priors in 1@b
+    # --floor-mode no-farther: in 1@b the switch is over the priors (30 against 25) but no farther over them than the
+    # base (30): met, the `under` reading named beside it; a switch farther over them there (30.2) is not
+    nf = ["--floor", "priors", "--floor-mode", "no-farther"]
+    assert tuning_rule.main(args + nf) == 0
+    text = out.read_text()
+    assert "**Adopted.**" in text and "met. Over `priors` at all (the `under` reading): 1@b." in text
+    tuning_rule.main(["--confirm"] + args + nf)
+    assert "**Stays.**" in out.read_text()
+    for r, lvl in (("1", "a"), ("2", "a"), ("1", "b")):
+        write(f"sw_{lvl}_far", r, 0, psnr=0.5, normal_mae=0.2)  # within the geometry bound: the PSNR rule passes
+    tuning_rule.main(["--rooms", "1@a,2@a,1@b", "--base", str(tmp_path / "sw_{level}"), "--switch",
+                      f"far={tmp_path / 'sw_{level}_far'}", "--out", str(out)] + nf)
+    assert "**Not adopted.**" in out.read_text() and "**not met** in 1@b." in out.read_text()
+    with pytest.raises(ValueError, match="--floor-mode 'over'"):
+        tuning_rule.apply_floor({"adopted": True, "stays": True}, {}, {}, "priors", "over")
+    with pytest.raises(SystemExit):  # a floor mode without a floor is refused, not ignored
+        tuning_rule.main(args + ["--floor-mode", "no-farther"])
 
 
 def test_gpu_budget_command_dry_run(tmp_path):
