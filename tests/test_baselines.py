@@ -166,6 +166,15 @@ def test_bench_preset_draws_early_patches_from_coarser_images_for_every_method()
     for preset in ("tiny", "quick", "gpu"):
         assert config_for("glint", preset).pyramid() == config_for("3dgs", preset).pyramid() == [], preset
     assert config_for("3dgs", "bench", coarse_to_fine="").pyramid() == []  # --set coarse_to_fine= turns it off
+    # no coarse image under 27 pixels a side (docs/results/coarse_to_fine, "The coarse-start floor"): at 96 x 54 the
+    # 1/4 level (24 x 13) is left out for every method, at 192 x 108 both levels are kept
+    for m in METHODS:
+        cfg = config_for(m, "bench")
+        assert cfg.coarse_min_side == 27, m
+        if m != "glint-paper":
+            assert cfg.coarse_levels(96, 54) == ([(2, pytest.approx(0.4))], [4]), m
+            assert cfg.coarse_levels(192, 108) == ([(4, pytest.approx(0.2)), (2, pytest.approx(0.4))], []), m
+    assert config_for("glint", "converged").coarse_min_side == 0  # no coarse start there: the headline's configs
 
 
 def test_only_glint_shares_a_clones_coverage_and_only_at_the_bench_preset():

@@ -1587,7 +1587,7 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     saved = TrainConfig.load(run / "config.json").flat()  # as runs before 2026-11-28 saved it: flat
     for k in ("epochs", "densify_grad_rel", "prior_layer", "blend", "downscale", "eval_full", "trans_albedo",
               "cue_votes", "cue_margin", "normal_loss", "normal_early", "prior_decay_ref", "coarse_to_fine",
-              "clone_opacity", "depth_prior_ref"):
+              "clone_opacity", "depth_prior_ref", "coarse_min_side"):
         saved.pop(k)
     saved.update(train_downsample=1, trans_cue="sfm", fresnel=True, densify_grad=2e-4)  # 2e-4: the old default
     saved["preset"] = "bench"  # whose coarse start and shared clones an old run must not read back
@@ -1595,10 +1595,10 @@ def test_a_run_folder_in_the_oldest_config_format_resumes(room, tmp_path):
     cfg = TrainConfig.load(run / "config.json")
     assert (cfg.epochs, cfg.downscale, cfg.trans_cue, cfg.densify_grad_rel, cfg.densify_grad, cfg.prior_layer,
             cfg.blend, cfg.trans_albedo, cfg.cue_votes, cfg.cue_margin, cfg.normal_loss, cfg.normal_early,
-            cfg.prior_decay_ref, cfg.coarse_to_fine, cfg.clone_opacity, cfg.depth_prior_ref) == \
+            cfg.prior_decay_ref, cfg.coarse_to_fine, cfg.clone_opacity, cfg.depth_prior_ref, cfg.coarse_min_side) == \
         (0.0, 1, "auto", 0.0, 2e-4, "interface", "fresnel", "masks", "view", 0.05, "l1_cos", "off", 0.0, "", "copy",
-         0.0)
-    assert len(MIGRATIONS) == 11
+         0.0, 0)
+    assert len(MIGRATIONS) == 12
     again = Trainer(run, cfg, resume=True, log=lambda *a: None)
     assert again.it == 2
     again.train(progress=False)
