@@ -267,9 +267,8 @@ class ScheduleConfig:
     #                                      sets "4:0.2,2:0.2" for every method; issue 66)
     coarse_min_side: int = 0             # coarse_to_fine's levels at which the smallest training view's shorter side
     #                                      would be under this many pixels are left out, the next finer level
-    #                                      starting in their place (27: none smaller than the bench preset's 1/4 of
-    #                                      192 x 108, where the coarse start was tuned; the bench preset's); 0: every
-    #                                      level
+    #                                      starting in their place (27, the bench preset's: none smaller than its
+    #                                      1/4 of 192 x 108, where the coarse start was tuned); 0: every level
 
 
 @dataclasses.dataclass
@@ -741,9 +740,9 @@ PRESETS = {
     # method but glint-paper draws its patches from 1/4-, then 1/2-size images for the first 20 % + 20 % of the run:
     # decided for GLINT on tuning rooms 7301-7303, checked on 9801-9803; 3DGS gains too (docs/results/coarse_to_fine).
     # No coarse image under 27 pixels on its shorter side (coarse_min_side: at 96 x 54 the 1/4 level, 24 x 13, is
-    # left out; nothing changes at 192 x 108 and above): decided on 7301-7303, checked on 9801-9803 (coarse_to_fine,
-    # "The coarse-start floor"). A clone and its parent share its coverage (clone_opacity: shared; decided for GLINT there too; the baselines
-    # and glint-paper keep 3DGS's copy, methods.NOT_OURS and PAPER)
+    # left out; nothing changes at 192 x 108 and above): tuned on 7301-7303, checked on 9801-9803 (coarse_to_fine,
+    # "The coarse-start floor checked on 9801-9803"). A clone and its parent share its coverage (clone_opacity:
+    # shared; decided for GLINT there too; the baselines and glint-paper keep 3DGS's copy, methods.NOT_OURS and PAPER)
     "bench": dict(iterations=4000, epochs=10.0, patches=48, patch=8, sh_degree=1, grid_n=16, grid_k=2, init_min_points=6000,
                   max_gaussians=60000, checkpoint_every=500, densify_every=0.025, reset_every=0.1,
                   lr_multiplier=1.5, coarse_to_fine="4:0.2,2:0.2", coarse_min_side=27, clone_opacity="shared"),
@@ -766,6 +765,7 @@ PRESETS = {
 # GLINT's kernel there is 3DGS's ellipsoid: surfels' cost grows with the budget (on 9803 they cost 3DGS 0.97 dB at
 # this point, 0.28 at bench's); decided on the tuning rooms at this point (geometry rule: AbsRel -7 %, +0.10 dB),
 # checked on 9801-9803 (coarse_to_fine, "Ellipsoids at the converged point"); surfel methods keep theirs (SURFELS)
+# coarse_min_side 0: inert without a coarse start, and the value the headline's runs were saved with
 PRESETS["converged"] = {**PRESETS["bench"], "epochs": 60.0, "densify_top": 0.25, "densify_grad_rel": 0.02,
                         "coarse_to_fine": "", "coarse_min_side": 0, "kernel": "ellipsoid"}
 SUPPLEMENT = dict(warmup=5 / 60, transmission_from=5 / 60, reflection_from=5 / 60, refine_from=40 / 60, tau_n=0.3)

@@ -166,8 +166,8 @@ def test_bench_preset_draws_early_patches_from_coarser_images_for_every_method()
     for preset in ("tiny", "quick", "gpu"):
         assert config_for("glint", preset).pyramid() == config_for("3dgs", preset).pyramid() == [], preset
     assert config_for("3dgs", "bench", coarse_to_fine="").pyramid() == []  # --set coarse_to_fine= turns it off
-    # no coarse image under 27 pixels a side (docs/results/coarse_to_fine, "The coarse-start floor"): at 96 x 54 the
-    # 1/4 level (24 x 13) is left out for every method, at 192 x 108 both levels are kept
+    # no coarse image under 27 pixels a side (docs/results/coarse_to_fine, "The coarse-start floor checked on
+    # 9801-9803"): at 96 x 54 the 1/4 level (24 x 13) is left out for every method, at 192 x 108 both are kept
     for m in METHODS:
         cfg = config_for(m, "bench")
         assert cfg.coarse_min_side == 27, m
