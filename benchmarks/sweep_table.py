@@ -63,6 +63,40 @@ def table(data: dict, by_room: bool = False) -> str:
     return "\n".join(lines)
 
 
+def floor_pairs(data: dict, key: str, reference: str = "priors") -> dict:
+    """{label: [(level, room, reference's, run's), ...]}: each run's ``key`` beside the ``reference`` row's of its
+    folder (the priors), per room and level; the reference's copies (``priors+SUFFIX``) are no run, and a level whose
+    folders all carry a suffix takes its first copy as the reference."""
+    labels = sorted({label for runs in data.values() for label in runs
+                     if label != reference and not label.startswith(reference + "+")})
+    out: dict = {}
+    for label in labels:
+        for level, runs in data.items():
+            ref = runs.get(reference) or next((r for lab, r in sorted(runs.items())
+                                               if lab.startswith(reference + "+")), {})
+            for room, row in sorted(runs.get(label, {}).items()):
+                if room in ref and math.isfinite(row[key]) and math.isfinite(ref[room][key]):
+                    out.setdefault(label, []).append((level, room, ref[room][key], row[key]))
+    return out
+
+
+def floor_summary(data: dict, reference: str = "priors") -> str:
+    """One line a run label: at how many room-levels its normal MAE and its AbsRel are at or under the ``reference``
+    row's, and which are over (issue 66, item 3: GLINT at or under its priors at every level)."""
+    lines = []
+    by_key = {key: floor_pairs(data, key, reference) for key in ("normal_mae", "absrel")}
+    for label in sorted({lab for pairs in by_key.values() for lab in pairs}):
+        parts = []
+        for key, name, d in (("normal_mae", "normals", 2), ("absrel", "AbsRel", 4)):
+            pairs = by_key[key].get(label, [])
+            over = [f"{level} {room} ({run:.{d}f} against {ref:.{d}f})" for level, room, ref, run in pairs
+                    if run > ref]
+            parts.append(f"{name} at or under in {len(pairs) - len(over)} of {len(pairs)}"
+                         + (f", over at {'; '.join(over)}" if over else ""))
+        lines.append(f"- `{label}` against `{reference}`: " + "; ".join(parts))
+    return "\n".join(lines)
+
+
 def floor_plot(data: dict, path: Path, reference: str = "priors") -> dict:
     """Each run's normal MAE and AbsRel against the ``reference`` row's (the priors), one point per room and level,
     with the diagonal: a point above it ends worse than its priors (issue 66, item 3). Returns the points plotted,
@@ -73,25 +107,15 @@ def floor_plot(data: dict, path: Path, reference: str = "priors") -> dict:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
-    labels = sorted({label for runs in data.values() for label in runs  # the reference's copies are no run
-                     if label != reference and not label.startswith(reference + "+")})
     marks = "osD^vP*X"
     points: dict = {}
     for ax, (key, name) in zip(axes, (("normal_mae", "normal MAE (deg)"), ("absrel", "AbsRel"))):
         lo, hi = math.inf, -math.inf
-        for j, label in enumerate(labels):
-            xs, ys = [], []
-            for level, runs in data.items():
-                ref = runs.get(reference) or next((r for lab, r in sorted(runs.items())  # or a folder's copy
-                                                   if lab.startswith(reference + "+")), {})
-                for room, row in runs.get(label, {}).items():
-                    if room in ref and math.isfinite(row[key]) and math.isfinite(ref[room][key]):
-                        xs.append(ref[room][key])
-                        ys.append(row[key])
-            if xs:
-                points.setdefault(key, {})[label] = list(zip(xs, ys))
-                ax.scatter(xs, ys, marker=marks[j % len(marks)], s=40, label=label, alpha=0.8)
-                lo, hi = min(lo, *xs, *ys), max(hi, *xs, *ys)
+        for j, (label, pairs) in enumerate(sorted(floor_pairs(data, key, reference).items())):
+            xs, ys = [p[2] for p in pairs], [p[3] for p in pairs]
+            points.setdefault(key, {})[label] = list(zip(xs, ys))
+            ax.scatter(xs, ys, marker=marks[j % len(marks)], s=40, label=label, alpha=0.8)
+            lo, hi = min(lo, *xs, *ys), max(hi, *xs, *ys)
         if math.isfinite(lo):
             pad = 0.05 * (hi - lo)
             ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], "k--", lw=1, label="= the priors'")
@@ -121,6 +145,9 @@ def main(argv=None) -> int:
     text = (f"`python benchmarks/sweep_table.py {' '.join(a.levels)}`" + (f" (rooms {a.rooms})" if rooms else "")
             + "; seed 0, the mean over the rooms each run finished"
             + (f"; not yet run: {', '.join(missing)}" if missing else "") + "\n\n" + table(data, a.by_room))
+    summary = floor_summary(data)  # each run against its folder's priors row, where it has one
+    if summary:
+        text += "\n\n" + summary
     print(text)
     if a.out:
         a.out.write_text(text + "\n")

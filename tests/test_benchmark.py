@@ -770,6 +770,15 @@ def test_sweep_table_labels_levels_and_folders(tmp_path):
     del data["1.0"]["priors"]  # every folder given with a suffix: the reference is its copy
     assert sweep_table.floor_plot(data, tmp_path / "floor.png")["normal_mae"]["glint"] == [(20.0, 18.0)]
     assert (tmp_path / "floor.png").stat().st_size > 10_000
+    # the floor count under the table: at or under in how many room-levels, and which are over
+    data = sweep_table.gather([f"1.0={tmp_path / 'a'}"], ["scene_1"])
+    data["1.0"]["glint"]["scene_1"].update(normal_mae=20.0, absrel=0.06)  # at the priors' normals: not over
+    data["1.0"]["priors"]["scene_1"]["absrel"] = 0.05
+    line = sweep_table.floor_summary(data)
+    assert "normals at or under in 1 of 1;" in line and "AbsRel at or under in 0 of 1, over at 1.0 scene_1 " \
+        "(0.0600 against 0.0500)" in line and "priors`:" in line and "- `priors`" not in line
+    data["1.0"]["glint"]["scene_1"]["absrel"] = 0.04
+    assert sweep_table.floor_summary(data).endswith("AbsRel at or under in 1 of 1")
 
 
 def test_densify_bump_reads_the_loss_around_densify_steps_and_leaves_resets_out(tmp_path):
