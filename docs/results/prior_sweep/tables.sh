@@ -58,3 +58,11 @@ for l in realistic_e0.5 realistic_e0.75 realistic_e1 realistic_e1.25 realistic_e
 done
 $PY benchmarks/sweep_table.py --by-room "${C[@]}" --out docs/results/prior_sweep/converged60.md \
     --floor-plot docs/results/prior_sweep/converged60_floor.png > /dev/null
+# item 3 at 40 epochs again with today's bench preset (sixty-second session, s62.sh): groups/b62_LEVEL_ROOM
+B=()
+for l in realistic_e0.5 realistic_e0.75 realistic_e1 realistic_e1.25 realistic_e2.0 realistic-v1_e0.5 realistic-v1_e2.0; do
+  f=""; for s in 7301 7302; do [ -d $G/b62_${l}_$s ] && f="$f,$G/b62_${l}_$s"; done
+  [ -n "$f" ] && B+=("$l=${f#,}")
+done
+[ ${#B[@]} -gt 0 ] && $PY benchmarks/sweep_table.py --by-room "${B[@]}" --out docs/results/prior_sweep/errors62.md \
+    --floor-plot docs/results/prior_sweep/errors62_floor.png > /dev/null
