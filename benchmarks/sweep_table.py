@@ -67,14 +67,14 @@ def floor_pairs(data: dict, key: str, reference: str = "priors") -> dict:
     """{label: [(level, room, reference's, run's), ...]}: each run's ``key`` beside the ``reference`` row's of its
     folder (the priors), per room and level; the reference's copies (``priors+SUFFIX``) are no run, and a level whose
     folders all carry a suffix takes its first copy as the reference."""
-    labels = sorted({label for runs in data.values() for label in runs
-                     if label != reference and not label.startswith(reference + "+")})
     out: dict = {}
-    for label in labels:
-        for level, runs in data.items():
-            ref = runs.get(reference) or next((r for lab, r in sorted(runs.items())
-                                               if lab.startswith(reference + "+")), {})
-            for room, row in sorted(runs.get(label, {}).items()):
+    for level, runs in data.items():
+        ref = runs.get(reference) or next((r for lab, r in sorted(runs.items())
+                                           if lab.startswith(reference + "+")), {})
+        for label, rows in sorted(runs.items()):
+            if label == reference or label.startswith(reference + "+"):
+                continue
+            for room, row in sorted(rows.items()):
                 if room in ref and math.isfinite(row[key]) and math.isfinite(ref[room][key]):
                     out.setdefault(label, []).append((level, room, ref[room][key], row[key]))
     return out
