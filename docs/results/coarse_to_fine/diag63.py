@@ -1,0 +1,76 @@
+"""The sixty-third session's diagnosis table (README, "What costs GLINT against `3dgs` at 40 epochs of 96 x 54"):
+each arm of s63d.sh against GLINT at today's preset (the committed base runs) and `3dgs` (groups/w62_3dgs_p27), per
+tuning room and as the mean; the share of the base's gap to `3dgs` each arm closes.
+
+    python docs/results/coarse_to_fine/diag63.py RUNS [--arms copy,noterms,el,iface] [--out FILE]
+
+RUNS holds the arms' folders d63_<arm>/ (the benchmark's output); a missing run is reported as not run."""
+import argparse
+import json
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOMS = ("7301", "7302", "7303")
+BASE = {"7301": HERE.parent / "prior_sweep/groups/b62_realistic_e1_7301",
+        "7302": HERE.parent / "prior_sweep/groups/b62_realistic_e1_7302",
+        "7303": HERE / "groups/t56_min27"}
+REF = HERE / "groups/w62_3dgs_p27"
+COLS = ("psnr", "psnr_glass", "psnr_off_glass", "normal_mae", "absrel", "t_iou")
+
+
+def read(folder: Path, room: str, method: str) -> dict | None:
+    run = folder / "runs" / f"scene_{room}" / method
+    try:
+        m = json.loads((run / "metrics.json").read_text())
+    except OSError:
+        return None
+    sizes = json.loads((run / "report.json").read_text()).get("sizes", {})
+    return {**{k: m["metrics"].get(k) for k in COLS}, "sizes": sizes, "minutes": m["train_s"] / 60}
+
+
+def fmt(r: dict | None) -> str:
+    if r is None:
+        return "not run | | | | | |"
+    t = "-" if r["t_iou"] is None or list(r["sizes"]) == ["interface"] else f"{r['t_iou']:.2f}"  # no t to find
+    sizes = "/".join(f"{v / 1000:.1f}" for v in r["sizes"].values())
+    return (f"{r['psnr']:.2f} / {r['psnr_glass']:.2f} / {r['psnr_off_glass']:.2f} | {r['normal_mae']:.2f} | "
+            f"{r['absrel']:.4f} | {t} | {sizes}k | {r['minutes']:.1f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("runs", type=Path)
+    ap.add_argument("--arms", default="copy,noterms,el,iface")
+    ap.add_argument("--out", type=Path)
+    a = ap.parse_args()
+    arms = a.arms.split(",")
+    rows = {"`3dgs` (today's preset)": {r: read(REF, r, "3dgs") for r in ROOMS},
+            "GLINT, today's preset": {r: read(BASE[r], r, "glint") for r in ROOMS}}
+    rows.update({f"`{arm}`": {r: read(a.runs / f"d63_{arm}", r, "glint") for r in ROOMS} for arm in arms})
+    lines = ["| room | run | PSNR all / glass / off | normals | AbsRel | t IoU | Gaussians (sets) | minutes |",
+             "|---|---|---|---|---|---|---|---|"]
+    for room in ROOMS:
+        lines += [f"| {room} | {name} | {fmt(runs[room])} |" for name, runs in rows.items()]
+    lines += ["", "| mean of the rooms each ran | PSNR all / glass / off | against the base | share of the gap to "
+              "`3dgs` closed | normals | AbsRel | rooms |", "|---|---|---|---|---|---|---|"]
+    ref, base = rows["`3dgs` (today's preset)"], rows["GLINT, today's preset"]
+    for name, runs in rows.items():
+        done = [r for r in ROOMS if runs[r] is not None and base[r] is not None and ref[r] is not None]
+        if not done:
+            lines.append(f"| {name} | not run | | | | | 0 |")
+            continue
+        mean = {k: sum(runs[r][k] for r in done) / len(done) for k in COLS[:5]}
+        d = {k: sum(runs[r][k] - base[r][k] for r in done) / len(done) for k in COLS[:3]}
+        gap = sum(ref[r]["psnr"] - base[r]["psnr"] for r in done) / len(done)
+        share = f"{d['psnr'] / gap:+.0%}" if abs(gap) > 1e-9 else "-"
+        lines.append(f"| {name} | {mean['psnr']:.2f} / {mean['psnr_glass']:.2f} / {mean['psnr_off_glass']:.2f} | "
+                     f"{d['psnr']:+.2f} / {d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} | {share} | "
+                     f"{mean['normal_mae']:.2f} | {mean['absrel']:.4f} | {len(done)} |")
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if a.out:
+        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --arms {a.arms}`\n\n" + text)
+
+
+if __name__ == "__main__":
+    main()
