@@ -2,8 +2,9 @@
 # The sixty-third session's diagnosis (README, "What costs GLINT against `3dgs` at 40 epochs of 96 x 54"): GLINT at
 # today's bench preset with the prior sweep's flags (s56.sh's command: 96 x 54, 40 epochs, w_sfm_depth=0, one Dr.Jit
 # thread, seed 0) and one switch, on one tuning room; decides nothing. A finished run is skipped.
-#   bash docs/results/coarse_to_fine/s63d.sh ARM ROOM      (ARM: priors copy noterms el iface; ROOM: 7301-7303)
-# Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM; folder RUNS/d63_<arm>.
+#   bash docs/results/coarse_to_fine/s63d.sh ARM ROOM      (ARM: priors copy noterms el iface; ROOM: 7301-7303,
+#                                                          or 9801-9803 for the check of `copy`)
+# Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>.
 set -u
 arm=${1:?an arm: priors copy noterms el iface}; room=${2:?a room: 7301 7302 7303}
 methods=glint
@@ -15,10 +16,14 @@ case $arm in
   iface) switch="--set components=interface" ;;                     # GLINT's interface alone, no second set
   *) echo "arm '$arm': use priors, copy, noterms, el or iface" >&2; exit 2 ;;
 esac
-case $room in 730[123]) ;; *) echo "room '$room': 7301-7303" >&2; exit 2 ;; esac
-WT=${WT:-/work/wt63}; RUNS=${RUNS:-/work/runs63}; PY=${PY:-/work/main/.venv/bin/python}; DATA73=${DATA73:-/work/data73}
+case $room in
+  730[123]) data=${DATA73:-/work/data73} ;;
+  980[123]) data=${DATA98:-/work/data98_r} ;;
+  *) echo "room '$room': 7301-7303 or 9801-9803" >&2; exit 2 ;;
+esac
+WT=${WT:-/work/wt63}; RUNS=${RUNS:-/work/runs63}; PY=${PY:-/work/main/.venv/bin/python}
 cd "$WT"; export PYTHONPATH=$WT:${WT}_path
 echo "=== $(date -u +%FT%TZ) d63_$arm $room"
 $PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40 \
-    --set eval_every=1000 $switch --methods $methods --data "$DATA73/r$room" --out "$RUNS/d63_$arm"
+    --set eval_every=1000 $switch --methods $methods --data "$data/r$room" --out "$RUNS/d63_$arm"
 echo "=== rc=$? $(date -u +%FT%TZ)"
