@@ -3,8 +3,10 @@ each arm of s63d.sh against GLINT at today's preset (the committed base runs) an
 tuning room and as the mean; the share of the base's gap to `3dgs` each arm closes.
 
     python docs/results/coarse_to_fine/diag63.py RUNS [--arms copy,noterms,el,iface] [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --check [--out FILE]
 
-RUNS holds the arms' folders d63_<arm>/ (the benchmark's output); a missing run is reported as not run."""
+RUNS holds the arms' folders d63_<arm>/ (the benchmark's output); a missing run is reported as not run. --check: on
+the check rooms 9801-9803, GLINT at today's preset (groups/t61_min27) against `3dgs` (RUNS/d63_3dgs)."""
 import argparse
 import json
 from pathlib import Path
@@ -15,6 +17,7 @@ BASE = {"7301": HERE.parent / "prior_sweep/groups/b62_realistic_e1_7301",
         "7302": HERE.parent / "prior_sweep/groups/b62_realistic_e1_7302",
         "7303": HERE / "groups/t56_min27"}
 REF = HERE / "groups/w62_3dgs_p27"
+CHECK_ROOMS = ("9801", "9802", "9803")
 COLS = ("psnr", "psnr_glass", "psnr_off_glass", "normal_mae", "absrel", "t_iou")
 
 
@@ -42,7 +45,10 @@ def main() -> None:
     ap.add_argument("runs", type=Path)
     ap.add_argument("--arms", default="copy,noterms,el,iface")
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--check", action="store_true", help="GLINT against `3dgs` on 9801-9803")
     a = ap.parse_args()
+    if a.check:
+        return check(a)
     arms = a.arms.split(",")
     rows = {"`3dgs` (today's preset)": {r: read(REF, r, "3dgs") for r in ROOMS},
             "GLINT, today's preset": {r: read(BASE[r], r, "glint") for r in ROOMS}}
@@ -70,6 +76,30 @@ def main() -> None:
     print(text, end="")
     if a.out:
         a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --arms {a.arms}`\n\n" + text)
+
+
+def check(a) -> None:
+    glint = {r: read(HERE / "groups/t61_min27", r, "glint") for r in CHECK_ROOMS}
+    ref = {r: read(a.runs / "d63_3dgs", r, "3dgs") for r in CHECK_ROOMS}
+    lines = ["| room | GLINT, today's preset: PSNR all / glass / off, normals, AbsRel | `3dgs`, today's preset | "
+             "GLINT - `3dgs`: all / glass / off |",
+             "|---|---|---|---|"]
+    done = [r for r in CHECK_ROOMS if glint[r] is not None and ref[r] is not None]
+    short = lambda r: ("not run" if r is None else
+                       f"{r['psnr']:.2f} / {r['psnr_glass']:.2f} / {r['psnr_off_glass']:.2f}, {r['normal_mae']:.2f}, "
+                       f"{r['absrel']:.4f}")
+    for r in CHECK_ROOMS:
+        d = (" / ".join(f"{glint[r][k] - ref[r][k]:+.2f}" for k in COLS[:3])) if r in done else "not run"
+        lines.append(f"| {r} | {short(glint[r])} | {short(ref[r])} | {d} |")
+    if done:
+        mean = lambda runs, k: sum(runs[r][k] for r in done) / len(done)
+        lines.append(f"| mean of {len(done)} | " + " / ".join(f"{mean(glint, k):.2f}" for k in COLS[:3]) + " | "
+                     + " / ".join(f"{mean(ref, k):.2f}" for k in COLS[:3]) + " | "
+                     + " / ".join(f"{mean(glint, k) - mean(ref, k):+.2f}" for k in COLS[:3]) + " |")
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if a.out:
+        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --check`\n\n" + text)
 
 
 if __name__ == "__main__":
