@@ -5,8 +5,9 @@ tuning room and as the mean; the share of the base's gap to `3dgs` each arm clos
     python docs/results/coarse_to_fine/diag63.py RUNS [--arms copy,noterms,el,iface] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --check [--out FILE]
 
-RUNS holds the arms' folders d63_<arm>/ (the benchmark's output); a missing run is reported as not run. --check: on
-the check rooms 9801-9803, GLINT at today's preset (groups/t61_min27) against `3dgs` (RUNS/d63_3dgs)."""
+RUNS holds the arms' folders d63_<arm>/ (the benchmark's output, or groups/ here, their small files); a missing
+run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's preset (groups/t61_min27)
+against `3dgs` (RUNS/d63_3dgs)."""
 import argparse
 import json
 from pathlib import Path
