@@ -12,6 +12,8 @@ import argparse
 import json
 from pathlib import Path
 
+from glint_mi.runs import finished_metrics
+
 HERE = Path(__file__).resolve().parent
 ROOMS = ("7301", "7302", "7303")
 BASE = {"7301": HERE.parent / "prior_sweep/groups/b62_realistic_e1_7301",
@@ -23,10 +25,10 @@ COLS = ("psnr", "psnr_glass", "psnr_off_glass", "normal_mae", "absrel", "t_iou")
 
 
 def read(folder: Path, room: str, method: str) -> dict | None:
+    """One seed-0 run's metrics, Gaussians per set and minutes; None where its evaluation has not finished."""
     run = folder / "runs" / f"scene_{room}" / method
-    try:
-        m = json.loads((run / "metrics.json").read_text())
-    except OSError:
+    m = finished_metrics(run)
+    if m is None:
         return None
     sizes = json.loads((run / "report.json").read_text()).get("sizes", {})
     return {**{k: m["metrics"].get(k) for k in COLS}, "sizes": sizes, "minutes": m["train_s"] / 60}

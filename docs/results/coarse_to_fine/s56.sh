@@ -17,8 +17,6 @@ case $room in
   *) echo "room '$room': 7301-7303 or 9801-9803" >&2; exit 2 ;;
 esac
 WT=${WT:-/work/wt56}; RUNS=${RUNS:-/work/runs56}; PY=${PY:-/work/main/.venv/bin/python}
-cd "$WT"; export PYTHONPATH=$WT:${WT}_path
 echo "=== $(date -u +%FT%TZ) t56_$arm $room"
-$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40 \
-    --set eval_every=1000 $sets --methods $methods --data "$data/r$room" --out "$RUNS/t56_$arm"
+WT=$WT PY=$PY bash "$(dirname "$0")/run40.sh" $methods "$data/r$room" "$RUNS/t56_$arm" --set eval_every=1000 $sets
 echo "=== rc=$? $(date -u +%FT%TZ)"

@@ -13,8 +13,6 @@ case $arm in
 esac
 case $room in 730[123]) ;; *) echo "room '$room': 7301-7303" >&2; exit 2 ;; esac
 WT=${WT:-/work/wt62}; RUNS=${RUNS:-/work/runs62}; PY=${PY:-/work/main/.venv/bin/python}; DATA73=${DATA73:-/work/data73}
-cd "$WT"; export PYTHONPATH=$WT:${WT}_path
 echo "=== $(date -u +%FT%TZ) w62_3dgs_$arm $room"
-$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40 \
-    --set eval_every=1000 $sets --methods 3dgs --data "$DATA73/r$room" --out "$RUNS/w62_3dgs_$arm"
+WT=$WT PY=$PY bash "$(dirname "$0")/run40.sh" 3dgs "$DATA73/r$room" "$RUNS/w62_3dgs_$arm" --set eval_every=1000 $sets
 echo "=== rc=$? $(date -u +%FT%TZ)"

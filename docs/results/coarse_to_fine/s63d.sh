@@ -24,8 +24,6 @@ case $room in
   *) echo "room '$room': 7301-7303 or 9801-9803" >&2; exit 2 ;;
 esac
 WT=${WT:-/work/wt63}; RUNS=${RUNS:-/work/runs63}; PY=${PY:-/work/main/.venv/bin/python}
-cd "$WT"; export PYTHONPATH=$WT:${WT}_path
 echo "=== $(date -u +%FT%TZ) d63_$arm $room"
-$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40 \
-    --set eval_every=1000 $switch --methods $methods --data "$data/r$room" --out "$RUNS/d63_$arm"
+WT=$WT PY=$PY bash "$(dirname "$0")/run40.sh" $methods "$data/r$room" "$RUNS/d63_$arm" --set eval_every=1000 $switch
 echo "=== rc=$? $(date -u +%FT%TZ)"

@@ -11,7 +11,8 @@ set -u
 TAG=${TAG:-b55}; SETS=${SETS:-}
 WT=${WT:-/work/wt55}; PY=${PY:-/work/main/.venv/bin/python}; DATA=${DATA:-/work/data73}; RUNS=${RUNS:-/work/runs55}
 room=${1:?ROOM: 7301 or 7302}; name=${2:?NAME: realistic-v1_e2.0 or see_0.2}
-source "$(dirname "$0")/levels.sh"
+here=$(cd "$(dirname "$0")" && pwd)
+source "$here/levels.sh"
 cd "$WT"; export PYTHONPATH=$WT:${WT}_path
 case $name in
   see_*) LEVELS="$DATA/levels_$room" level $name $room --model realistic --see-through ${name#see_} || exit 1 ;;
@@ -19,6 +20,6 @@ case $name in
   *) echo "unknown level '$name'" >&2; exit 2 ;;
 esac
 echo "=== $(date -u +%FT%TZ) glint $name $room (40 epochs) $SETS"
-$PY -m glint_mi.benchmark --preset bench --set downscale=2 --set w_sfm_depth=0 --set threads=1 --set epochs=40 \
-    $SETS --methods priors,glint --data "$DATA/levels_$room/$name" --out "$RUNS/${TAG}_${name}_$room"
+WT=$WT PY=$PY bash "$here/../coarse_to_fine/run40.sh" priors,glint "$DATA/levels_$room/$name" \
+    "$RUNS/${TAG}_${name}_$room" $SETS
 echo "=== rc=$? $(date -u +%FT%TZ)"
