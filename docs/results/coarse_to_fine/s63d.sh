@@ -4,9 +4,12 @@
 # thread, seed 0) and one switch, on one tuning room; decides nothing. A finished run is skipped.
 #   bash docs/results/coarse_to_fine/s63d.sh ARM ROOM      (ARM: priors 3dgs copy noterms el iface copyel; ROOM: 7301-7303,
 #                                                          or 9801-9803 for the check of `copy`)
-# Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>.
+# The sixty-fourth session's ladder (README, "A ladder from GLINT's interface to `3dgs`"): ARM i_el, i_copy, i_photo,
+# i_cons, i_3dgs, each the one before it and one more of 3DGS's fields, the last 3DGS's configuration to the field.
+# Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
+# (the ladder's RUNS/d64_<arm>).
 set -u
-arm=${1:?an arm: priors 3dgs copy noterms el iface copyel}; room=${2:?a room: 7301 7302 7303}
+arm=${1:?an arm: priors 3dgs copy noterms el iface copyel, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
 methods=glint
 case $arm in
   priors) switch=""; methods=priors ;;                              # the renders' check: no training
@@ -16,7 +19,19 @@ case $arm in
   el) switch="--set kernel=ellipsoid" ;;                            # 3DGS's kernel
   iface) switch="--set components=interface" ;;                     # GLINT's interface alone, no second set
   copyel) switch="--set clone_opacity=copy --set kernel=ellipsoid" ;; # both (declared after copy and el on 7301)
-  *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface or copyel" >&2; exit 2 ;;
+  i_el|i_copy|i_photo|i_cons|i_3dgs) ;;
+  *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface, copyel, i_el, i_copy, i_photo, i_cons or i_3dgs" >&2
+     exit 2 ;;
+esac
+tag=d63
+case $arm in  # the ladder: each step keeps the ones before it
+  i_*) tag=d64; switch="--set components=interface --set kernel=ellipsoid" ;;&              # i_el: 3DGS's kernel
+  i_copy|i_photo|i_cons|i_3dgs) switch="$switch --set clone_opacity=copy" ;;&                # 3DGS's clones
+  i_photo|i_cons|i_3dgs) switch="$switch --set w_l1=0.8 --set w_dssim=0.2" ;;&               # 3DGS's L1 / D-SSIM
+  i_cons|i_3dgs) switch="$switch --set w_consistency=0" ;;&                                  # no consistency term
+  i_3dgs) switch="$switch --set priors=none --set w_depth=0 --set w_normal=0 --set blend=alpha --set w_trans=0
+                  --set w_treg=0 --set w_plausibility=0 --set w_direct=0 --set normal_weight=uniform
+                  --set prior_decay=1.0 --set depth_prior_ref=0" ;;                          # no priors: 3DGS's config
 esac
 case $room in
   730[123]) data=${DATA73:-/work/data73} ;;
@@ -24,6 +39,6 @@ case $room in
   *) echo "room '$room': 7301-7303 or 9801-9803" >&2; exit 2 ;;
 esac
 WT=${WT:-/work/wt63}; RUNS=${RUNS:-/work/runs63}; PY=${PY:-/work/main/.venv/bin/python}
-echo "=== $(date -u +%FT%TZ) d63_$arm $room"
-WT=$WT PY=$PY bash "$(dirname "$0")/run40.sh" $methods "$data/r$room" "$RUNS/d63_$arm" --set eval_every=1000 $switch
+echo "=== $(date -u +%FT%TZ) ${tag}_$arm $room"
+WT=$WT PY=$PY bash "$(dirname "$0")/run40.sh" $methods "$data/r$room" "$RUNS/${tag}_$arm" --set eval_every=1000 $switch
 echo "=== rc=$? $(date -u +%FT%TZ)"
