@@ -4,10 +4,13 @@ tuning room and as the mean; the share of the base's gap to `3dgs` each arm clos
 
     python docs/results/coarse_to_fine/diag63.py RUNS [--arms copy,noterms,el,iface] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --check [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --ladder i_el,i_copy,i_photo,i_cons [--out FILE]
 
 RUNS holds the arms' folders d63_<arm>/ (the benchmark's output, or groups/ here, their small files); a missing
 run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's preset (groups/t61_min27)
-against `3dgs` (RUNS/d63_3dgs)."""
+against `3dgs` (RUNS/d63_3dgs). --ladder: the sixty-fourth session's steps (RUNS/d64_<step>, cumulative) from
+GLINT's interface alone (RUNS/d63_iface) to `3dgs`, each step's gain over the one before it and its share of the
+interface's gap to `3dgs`; the last row, the step from the ladder's last rung to `3dgs`."""
 import argparse
 import json
 from pathlib import Path
@@ -49,9 +52,12 @@ def main() -> None:
     ap.add_argument("--arms", default="copy,noterms,el,iface")
     ap.add_argument("--out", type=Path)
     ap.add_argument("--check", action="store_true", help="GLINT against `3dgs` on 9801-9803")
+    ap.add_argument("--ladder", help="the ladder's steps in order, e.g. i_el,i_copy,i_photo,i_cons")
     a = ap.parse_args()
     if a.check:
         return check(a)
+    if a.ladder:
+        return ladder(a)
     arms = a.arms.split(",")
     rows = {"`3dgs` (today's preset)": {r: read(REF, r, "3dgs") for r in ROOMS},
             "GLINT, today's preset": {r: read(BASE[r], r, "glint") for r in ROOMS}}
@@ -79,6 +85,38 @@ def main() -> None:
     print(text, end="")
     if a.out:
         a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --arms {a.arms}`\n\n" + text)
+
+
+def ladder(a) -> None:
+    steps = a.ladder.split(",")
+    rungs = {"`iface` (GLINT's interface alone)": {r: read(a.runs / "d63_iface", r, "glint") for r in ROOMS}}
+    rungs.update({f"`{s}`": {r: read(a.runs / f"d64_{s}", r, "glint") for r in ROOMS} for s in steps})
+    rungs["`3dgs`"] = {r: read(REF, r, "3dgs") for r in ROOMS}
+    lines = ["| room | rung | PSNR all / glass / off | normals | AbsRel | t IoU | Gaussians | minutes |",
+             "|---|---|---|---|---|---|---|---|"]
+    for room in ROOMS:
+        lines += [f"| {room} | {name} | {fmt(runs[room])} |" for name, runs in rungs.items()]
+    names = list(rungs)
+    first, last = rungs[names[0]], rungs[names[-1]]
+    lines += ["", "| step to | PSNR all / glass / off over the rung before | per room | share of `iface`'s gap to "
+              "`3dgs` | normals | AbsRel | rooms |", "|---|---|---|---|---|---|---|"]
+    for before, name in zip(names, names[1:]):
+        prev, runs = rungs[before], rungs[name]
+        done = [r for r in ROOMS if runs[r] is not None and prev[r] is not None]
+        if not done:
+            lines.append(f"| {name} | not run | | | | | 0 |")
+            continue
+        d = {k: sum(runs[r][k] - prev[r][k] for r in done) / len(done) for k in COLS[:3]}
+        gap = sum(last[r]["psnr"] - first[r]["psnr"] for r in done) / len(done)
+        share = f"{d['psnr'] / gap:+.0%}" if abs(gap) > 1e-9 else "-"
+        per = ", ".join(f"{runs[r]['psnr'] - prev[r]['psnr']:+.2f}" for r in done)
+        geo = {k: sum(runs[r][k] for r in done) / len(done) for k in ("normal_mae", "absrel")}
+        lines.append(f"| {name} | {d['psnr']:+.2f} / {d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} | {per} | "
+                     f"{share} | {geo['normal_mae']:.2f} | {geo['absrel']:.4f} | {len(done)} |")
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if a.out:
+        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --ladder {a.ladder}`\n\n" + text)
 
 
 def check(a) -> None:
