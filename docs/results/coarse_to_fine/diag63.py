@@ -5,12 +5,14 @@ tuning room and as the mean; the share of the base's gap to `3dgs` each arm clos
     python docs/results/coarse_to_fine/diag63.py RUNS [--arms copy,noterms,el,iface] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --check [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --ladder i_el,i_copy,i_photo,i_cons [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --check-arm el [--out FILE]
 
 RUNS holds the arms' folders d63_<arm>/ (the benchmark's output, or groups/ here, their small files); a missing
 run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's preset (groups/t61_min27)
 against `3dgs` (RUNS/d63_3dgs). --ladder: the sixty-fourth session's steps (RUNS/d64_<step>, cumulative) from
 GLINT's interface alone (RUNS/d63_iface) to `3dgs`, each step's gain over the one before it and its share of the
-interface's gap to `3dgs`; the last row, the step from the ladder's last rung to `3dgs`."""
+interface's gap to `3dgs`; the last row, the step from the ladder's last rung to `3dgs`. --check-arm ARM: on
+9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there."""
 import argparse
 import json
 from pathlib import Path
@@ -53,9 +55,12 @@ def main() -> None:
     ap.add_argument("--out", type=Path)
     ap.add_argument("--check", action="store_true", help="GLINT against `3dgs` on 9801-9803")
     ap.add_argument("--ladder", help="the ladder's steps in order, e.g. i_el,i_copy,i_photo,i_cons")
+    ap.add_argument("--check-arm", help="an arm on 9801-9803 against GLINT at today's preset and `3dgs`")
     a = ap.parse_args()
     if a.check:
         return check(a)
+    if a.check_arm:
+        return check_arm(a)
     if a.ladder:
         return ladder(a)
     arms = a.arms.split(",")
@@ -117,6 +122,34 @@ def ladder(a) -> None:
     print(text, end="")
     if a.out:
         a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --ladder {a.ladder}`\n\n" + text)
+
+
+def check_arm(a) -> None:
+    rows = {"GLINT, today's preset": {r: read(HERE / "groups/t61_min27", r, "glint") for r in CHECK_ROOMS},
+            f"`{a.check_arm}`": {r: read(a.runs / f"d63_{a.check_arm}", r, "glint") for r in CHECK_ROOMS},
+            "`3dgs` (today's preset)": {r: read(a.runs / "d63_3dgs", r, "3dgs") for r in CHECK_ROOMS}}
+    lines = ["| room | run | PSNR all / glass / off | normals | AbsRel | t IoU | Gaussians (sets) | minutes |",
+             "|---|---|---|---|---|---|---|---|"]
+    for room in CHECK_ROOMS:
+        lines += [f"| {room} | {name} | {fmt(runs[room])} |" for name, runs in rows.items()]
+    base, arm, ref = rows.values()
+    done = [r for r in CHECK_ROOMS if all(x[r] is not None for x in (base, arm, ref))]
+    lines += ["", f"| mean of the rooms `{a.check_arm}` ran | PSNR all / glass / off | against the base | per room | "
+              "against `3dgs` | normals | AbsRel | rooms |", "|---|---|---|---|---|---|---|---|"]
+    if done:
+        mean = lambda runs, k: sum(runs[r][k] for r in done) / len(done)
+        for name, runs in rows.items():
+            lines.append(f"| {name} | " + " / ".join(f"{mean(runs, k):.2f}" for k in COLS[:3]) + " | "
+                         + " / ".join(f"{mean(runs, k) - mean(base, k):+.2f}" for k in COLS[:3]) + " | "
+                         + ", ".join(f"{runs[r]['psnr'] - base[r]['psnr']:+.2f}" for r in done) + " | "
+                         + " / ".join(f"{mean(runs, k) - mean(ref, k):+.2f}" for k in COLS[:3]) + " | "
+                         + f"{mean(runs, 'normal_mae'):.2f} | {mean(runs, 'absrel'):.4f} | {len(done)} |")
+    else:
+        lines.append("| not run | | | | | | | 0 |")
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if a.out:
+        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --check-arm {a.check_arm}`\n\n" + text)
 
 
 def check(a) -> None:
