@@ -48,6 +48,23 @@ def fmt(r: dict | None) -> str:
             f"{r['absrel']:.4f} | {t} | {sizes}k | {r['minutes']:.1f}")
 
 
+def per_room(rooms, rows: dict, what: str = "run", sizes: str = "Gaussians (sets)") -> list[str]:
+    """The per-room table: each room, each row of ``rows`` ({name: {room: read(...)}})."""
+    lines = [f"| room | {what} | PSNR all / glass / off | normals | AbsRel | t IoU | {sizes} | minutes |",
+             "|---|---|---|---|---|---|---|---|"]
+    for room in rooms:
+        lines += [f"| {room} | {name} | {fmt(runs[room])} |" for name, runs in rows.items()]
+    return lines
+
+
+def emit(a, flag: str, lines: list[str]) -> None:
+    """Print the table and, with --out, write it under the command that made it."""
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if a.out:
+        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} {flag}`\n\n" + text)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", type=Path)
@@ -67,10 +84,7 @@ def main() -> None:
     rows = {"`3dgs` (today's preset)": {r: read(REF, r, "3dgs") for r in ROOMS},
             "GLINT, today's preset": {r: read(BASE[r], r, "glint") for r in ROOMS}}
     rows.update({f"`{arm}`": {r: read(a.runs / f"d63_{arm}", r, "glint") for r in ROOMS} for arm in arms})
-    lines = ["| room | run | PSNR all / glass / off | normals | AbsRel | t IoU | Gaussians (sets) | minutes |",
-             "|---|---|---|---|---|---|---|---|"]
-    for room in ROOMS:
-        lines += [f"| {room} | {name} | {fmt(runs[room])} |" for name, runs in rows.items()]
+    lines = per_room(ROOMS, rows)
     lines += ["", "| mean of the rooms each ran | PSNR all / glass / off | against the base | share of the gap to "
               "`3dgs` closed | normals | AbsRel | rooms |", "|---|---|---|---|---|---|---|"]
     ref, base = rows["`3dgs` (today's preset)"], rows["GLINT, today's preset"]
@@ -86,10 +100,7 @@ def main() -> None:
         lines.append(f"| {name} | {mean['psnr']:.2f} / {mean['psnr_glass']:.2f} / {mean['psnr_off_glass']:.2f} | "
                      f"{d['psnr']:+.2f} / {d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} | {share} | "
                      f"{mean['normal_mae']:.2f} | {mean['absrel']:.4f} | {len(done)} |")
-    text = "\n".join(lines) + "\n"
-    print(text, end="")
-    if a.out:
-        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --arms {a.arms}`\n\n" + text)
+    emit(a, f"--arms {a.arms}", lines)
 
 
 def ladder(a) -> None:
@@ -97,10 +108,7 @@ def ladder(a) -> None:
     rungs = {"`iface` (GLINT's interface alone)": {r: read(a.runs / "d63_iface", r, "glint") for r in ROOMS}}
     rungs.update({f"`{s}`": {r: read(a.runs / f"d64_{s}", r, "glint") for r in ROOMS} for s in steps})
     rungs["`3dgs`"] = {r: read(REF, r, "3dgs") for r in ROOMS}
-    lines = ["| room | rung | PSNR all / glass / off | normals | AbsRel | t IoU | Gaussians | minutes |",
-             "|---|---|---|---|---|---|---|---|"]
-    for room in ROOMS:
-        lines += [f"| {room} | {name} | {fmt(runs[room])} |" for name, runs in rungs.items()]
+    lines = per_room(ROOMS, rungs, what="rung", sizes="Gaussians")
     names = list(rungs)
     first, last = rungs[names[0]], rungs[names[-1]]
     lines += ["", "| step to | PSNR all / glass / off over the rung before | per room | share of `iface`'s gap to "
@@ -118,20 +126,14 @@ def ladder(a) -> None:
         geo = {k: sum(runs[r][k] for r in done) / len(done) for k in ("normal_mae", "absrel")}
         lines.append(f"| {name} | {d['psnr']:+.2f} / {d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} | {per} | "
                      f"{share} | {geo['normal_mae']:.2f} | {geo['absrel']:.4f} | {len(done)} |")
-    text = "\n".join(lines) + "\n"
-    print(text, end="")
-    if a.out:
-        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --ladder {a.ladder}`\n\n" + text)
+    emit(a, f"--ladder {a.ladder}", lines)
 
 
 def check_arm(a) -> None:
     rows = {"GLINT, today's preset": {r: read(HERE / "groups/t61_min27", r, "glint") for r in CHECK_ROOMS},
             f"`{a.check_arm}`": {r: read(a.runs / f"d63_{a.check_arm}", r, "glint") for r in CHECK_ROOMS},
             "`3dgs` (today's preset)": {r: read(a.runs / "d63_3dgs", r, "3dgs") for r in CHECK_ROOMS}}
-    lines = ["| room | run | PSNR all / glass / off | normals | AbsRel | t IoU | Gaussians (sets) | minutes |",
-             "|---|---|---|---|---|---|---|---|"]
-    for room in CHECK_ROOMS:
-        lines += [f"| {room} | {name} | {fmt(runs[room])} |" for name, runs in rows.items()]
+    lines = per_room(CHECK_ROOMS, rows)
     base, arm, ref = rows.values()
     done = [r for r in CHECK_ROOMS if all(x[r] is not None for x in (base, arm, ref))]
     lines += ["", f"| mean of the rooms `{a.check_arm}` ran | PSNR all / glass / off | against the base | per room | "
@@ -146,10 +148,7 @@ def check_arm(a) -> None:
                          + f"{mean(runs, 'normal_mae'):.2f} | {mean(runs, 'absrel'):.4f} | {len(done)} |")
     else:
         lines.append("| not run | | | | | | | 0 |")
-    text = "\n".join(lines) + "\n"
-    print(text, end="")
-    if a.out:
-        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --check-arm {a.check_arm}`\n\n" + text)
+    emit(a, f"--check-arm {a.check_arm}", lines)
 
 
 def check(a) -> None:
@@ -170,10 +169,7 @@ def check(a) -> None:
         lines.append(f"| mean of {len(done)} | " + " / ".join(f"{mean(glint, k):.2f}" for k in COLS[:3]) + " | "
                      + " / ".join(f"{mean(ref, k):.2f}" for k in COLS[:3]) + " | "
                      + " / ".join(f"{mean(glint, k) - mean(ref, k):+.2f}" for k in COLS[:3]) + " |")
-    text = "\n".join(lines) + "\n"
-    print(text, end="")
-    if a.out:
-        a.out.write_text(f"`python docs/results/coarse_to_fine/diag63.py {a.runs} --check`\n\n" + text)
+    emit(a, "--check", lines)
 
 
 if __name__ == "__main__":

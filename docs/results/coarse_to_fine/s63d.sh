@@ -5,13 +5,14 @@
 #   bash docs/results/coarse_to_fine/s63d.sh ARM ROOM      (ARM: priors 3dgs copy noterms el iface copyel; ROOM: 7301-7303,
 #                                                          or 9801-9803 for the check of `copy`)
 # The sixty-fourth session's ladder (README, "A ladder from GLINT's interface to `3dgs`"): ARM i_el, i_copy, i_photo,
-# i_cons, i_3dgs, each the one before it and one more of 3DGS's fields, the last 3DGS's configuration to the field;
-# photo, nocons: the steps i_photo and i_cons alone on the whole of GLINT.
+# i_cons, each the one before it and one more of 3DGS's fields, and i_3dgs, the `3dgs` method itself (the next
+# step, no priors, gives 3DGS's configuration to the field); photo, nocons: the steps i_photo and i_cons alone on the
+# whole of GLINT.
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
 # (the ladder's RUNS/d64_<arm>).
 set -u
 arm=${1:?an arm: priors 3dgs copy noterms el iface copyel, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
-methods=glint; tag=""
+methods=glint; tag=d63
 case $arm in
   priors) switch=""; methods=priors ;;                              # the renders' check: no training
   3dgs) switch=""; methods=3dgs ;;                                  # the reference on the check rooms
@@ -22,20 +23,17 @@ case $arm in
   copyel) switch="--set clone_opacity=copy --set kernel=ellipsoid" ;; # both (declared after copy and el on 7301)
   photo) switch="--set w_l1=0.8 --set w_dssim=0.2"; tag=d64 ;;     # the ladder's follow-ups on the whole of GLINT
   nocons) switch="--set w_consistency=0"; tag=d64 ;;
-  i_el|i_copy|i_photo|i_cons|i_3dgs) ;;
+  i_3dgs) switch=""; methods=3dgs; tag=d64 ;;                       # the ladder's last rung: the method, no list
+  i_el|i_copy|i_photo|i_cons) ;;
   *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface, copyel, i_el, i_copy, i_photo, i_cons, i_3dgs," \
           "photo or nocons" >&2
      exit 2 ;;
 esac
-tag=${tag:-d63}
 case $arm in  # the ladder: each step keeps the ones before it
-  i_*) tag=d64; switch="--set components=interface --set kernel=ellipsoid" ;;&              # i_el: 3DGS's kernel
-  i_copy|i_photo|i_cons|i_3dgs) switch="$switch --set clone_opacity=copy" ;;&                # 3DGS's clones
-  i_photo|i_cons|i_3dgs) switch="$switch --set w_l1=0.8 --set w_dssim=0.2" ;;&               # 3DGS's L1 / D-SSIM
-  i_cons|i_3dgs) switch="$switch --set w_consistency=0" ;;&                                  # no consistency term
-  i_3dgs) switch="$switch --set priors=none --set w_depth=0 --set w_normal=0 --set blend=alpha --set w_trans=0
-                  --set w_treg=0 --set w_plausibility=0 --set w_direct=0 --set normal_weight=uniform
-                  --set prior_decay=1.0 --set depth_prior_ref=0" ;;                          # no priors: 3DGS's config
+  i_el|i_copy|i_photo|i_cons) tag=d64; switch="--set components=interface --set kernel=ellipsoid" ;;&  # 3DGS's kernel
+  i_copy|i_photo|i_cons) switch="$switch --set clone_opacity=copy" ;;&                       # 3DGS's clones
+  i_photo|i_cons) switch="$switch --set w_l1=0.8 --set w_dssim=0.2" ;;&                      # 3DGS's L1 / D-SSIM
+  i_cons) switch="$switch --set w_consistency=0" ;;                                          # no consistency term
 esac
 case $room in
   730[123]) data=${DATA73:-/work/data73} ;;
