@@ -6,14 +6,12 @@ Mitsuba variant (default ``llvm_ad_rgb``, or ``$GLINT_VARIANT``), checks LLVM an
 """
 from __future__ import annotations
 
-import contextlib
-import importlib.abc
 import os
 import sys
 
-from glint_mi._llvm import LLVMError, check_llvm, configure_environment
-
-configure_environment()
+# The Ctrl-C hooks come first, before this package imports anything: a Ctrl-C that lands in an import lock's weakref
+# callback while the imports below run (0.05 s into a command on a loaded machine) would otherwise be printed as
+# 'Exception ignored ... Traceback ... KeyboardInterrupt' and lost.
 
 
 def _quiet_interrupt(kind, value, tb, _previous=sys.excepthook):
@@ -32,21 +30,30 @@ def _quiet_interrupt(kind, value, tb, _previous=sys.excepthook):
 
 
 def _interrupt_again(unraisable, _previous=sys.unraisablehook):
-    """A Ctrl-C that lands in a callback Python cannot raise from (an import lock's weakref callback, seen 0.1 s into
-    a command) would print 'Exception ignored ... KeyboardInterrupt' and be lost: deliver it again, to be raised
-    where the command handles it."""
+    """A Ctrl-C that lands in a callback Python cannot raise from (an import lock's weakref callback, seen 0.05-0.1 s
+    into a command) would print 'Exception ignored ... KeyboardInterrupt' and be lost: deliver it again, to be raised
+    where the command handles it. Not from here: signal.raise_signal and _thread.interrupt_main both raise it at
+    once, inside this hook, where it is lost again; a thread marks it pending 10 ms later, when the hook has returned
+    (a process that ends sooner needs no Ctrl-C)."""
     if isinstance(unraisable.exc_value, KeyboardInterrupt):
-        import signal
+        import _thread  # built in and loaded at start-up, as time is: no import runs here
+        import time
 
-        signal.raise_signal(signal.SIGINT)
+        _thread.start_new_thread(lambda: (time.sleep(0.01), _thread.interrupt_main()), ())
         return
     _previous(unraisable)
 
 
 if sys.excepthook is sys.__excepthook__:  # leave IPython's and other hosts' hooks alone
     sys.excepthook = _quiet_interrupt
-if sys.unraisablehook is sys.__unraisablehook__:
+if sys.unraisablehook is sys.__unraisablehook__:  # the start-up hook (_llvm.EARLY_PTH_LINE) may have set its own
     sys.unraisablehook = _interrupt_again
+
+import contextlib  # noqa: E402 (after the hooks, as said above)
+
+from glint_mi._llvm import LLVMError, check_llvm, configure_environment  # noqa: E402
+
+configure_environment()
 
 
 @contextlib.contextmanager
@@ -73,7 +80,7 @@ def deferred_interrupt():
                 signal.raise_signal(signal.SIGINT)
 
 
-class _NativeImports(importlib.abc.MetaPathFinder):
+class _NativeImports:  # a meta path finder needs only find_spec (importlib.abc costs 70 ms of imports at start)
     """Loads Dr.Jit, Mitsuba and NumPy (the top-level packages, whose loading brings in their extensions) inside
     :func:`deferred_interrupt`, whichever module imports them first. NumPy's extension imports ``datetime`` through
     ``PyCapsule_Import``, which turns a KeyboardInterrupt landing there into a plain ImportError (measured 0.05 s into

@@ -75,18 +75,31 @@ def check_llvm() -> tuple[int, ...]:
 
 
 PTH_NAME = "glint_mi_llvm.pth"
+EARLY_PTH_NAME = "00_glint_mi_interrupt.pth"  # site reads .pth files in sorted order: this one before any other
 
 
 def install_pth() -> str:
-    """Write a start-up hook into this environment's site-packages that sets DRJIT_LIBLLVM_PATH before any import
-    (so ``import mitsuba`` before ``import glint_mi`` also gets a usable LLVM)."""
+    """Write start-up hooks into this environment's site-packages: one that sets DRJIT_LIBLLVM_PATH before any
+    import (so ``import mitsuba`` before ``import glint_mi`` also gets a usable LLVM), and one read before every
+    other .pth file that keeps a Ctrl-C landing in an import lock's weakref callback during start-up (0.05 s into a
+    command on a loaded machine) from being printed as 'Exception ignored' with a traceback and lost."""
     import sysconfig
 
-    path = os.path.join(sysconfig.get_paths()["purelib"], PTH_NAME)
-    with open(path, "w") as f:
-        f.write(PTH_LINE)
-    return path
+    site = sysconfig.get_paths()["purelib"]
+    for name, line in ((EARLY_PTH_NAME, EARLY_PTH_LINE), (PTH_NAME, PTH_LINE)):
+        with open(os.path.join(site, name), "w") as f:
+            f.write(line)
+    return os.path.join(site, PTH_NAME)
 
+
+# glint_mi._interrupt_again as a start-up hook, read before any other .pth file: a KeyboardInterrupt that Python could
+# not raise (it came in a callback) is marked pending again 10 ms later by a thread, to be raised in the next code
+# that can raise it; anything else goes to the hook that was there. No import runs: _thread and time are built in and
+# loaded before site. glint_mi's own hook is set only where this one is not.
+EARLY_PTH_LINE = ("import sys, _thread, time; exec('def _glint_unraisable(u, _p=sys.unraisablehook, _t=_thread, "
+                  "_s=time.sleep):\\n if isinstance(u.exc_value, KeyboardInterrupt): _t.start_new_thread(lambda: "
+                  "(_s(0.01), _t.interrupt_main()), ())\\n else: _p(u)"
+                  "\\nif sys.unraisablehook is sys.__unraisablehook__: sys.unraisablehook = _glint_unraisable')\n")
 
 # the hook runs inside Python's start-up (site), where a KeyboardInterrupt is a "Fatal Python error" with a traceback:
 # a Ctrl-C that lands in it ends the process with one line and status 130, as it would a moment later

@@ -4,7 +4,7 @@ import pytest
 
 from glint_mi import _llvm
 
-from conftest import LLVM
+from conftest import LLVM, ROOT
 
 pytestmark = pytest.mark.skipif(not LLVM, reason="checks the LLVM library the llvm variants load (a cuda run may have "
                                 "none)")
@@ -69,3 +69,47 @@ def test_the_startup_hook_turns_ctrl_c_into_one_line_and_status_130():
     r = subprocess.run([sys.executable, "-c", stub + f"exec({_llvm.PTH_LINE!r})"], capture_output=True, text=True,
                        timeout=120)
     assert r.returncode == 130 and r.stderr == "interrupted\n", (r.returncode, r.stderr)
+
+
+LOST_IN_A_CALLBACK = """
+import time, weakref
+class Lock: pass
+def cb(ref): raise KeyboardInterrupt  # as a Ctrl-C landing in an import lock's weakref callback (importlib's cb)
+lock = Lock(); ref = weakref.ref(lock, cb)
+try:
+    del lock
+    time.sleep(2)
+    print("lost")
+except KeyboardInterrupt:
+    print("raised")
+"""
+
+
+@pytest.mark.parametrize("hook", ["start-up", "package"])
+def test_a_ctrl_c_landing_in_a_callback_is_raised_again(hook):
+    """A KeyboardInterrupt in a weakref callback is one Python cannot raise: without a hook it is printed as
+    'Exception ignored ... Traceback' and lost, and the command runs on (CI: a Ctrl-C 0.05 s into `evaluate`). The
+    start-up hook (read before any other .pth file) and the package's own deliver it again, to be raised where code
+    can catch it; and signal.raise_signal would not do (it raises inside the hook, where it is lost again)."""
+    import subprocess
+    import sys
+
+    first = (f"exec({_llvm.EARLY_PTH_LINE!r})\n" if hook == "start-up" else
+             f"import sys; sys.path.insert(0, {str(ROOT)!r}); import glint_mi\n")
+    r = subprocess.run([sys.executable, "-S", "-c", first + LOST_IN_A_CALLBACK], capture_output=True, text=True,
+                       timeout=120)
+    assert r.stdout == "raised\n" and "Traceback" not in r.stderr, (r.stdout, r.stderr)
+    r = subprocess.run([sys.executable, "-S", "-c", LOST_IN_A_CALLBACK], capture_output=True, text=True, timeout=120)
+    assert r.stdout == "lost\n" and "KeyboardInterrupt" in r.stderr, (r.stdout, r.stderr)  # the test can fail
+
+
+def test_the_interrupt_hook_is_read_before_every_other_startup_file():
+    import os
+    import sysconfig
+
+    site = sysconfig.get_paths()["purelib"]
+    if not os.path.exists(os.path.join(site, _llvm.EARLY_PTH_NAME)):
+        pytest.skip("start-up hooks not installed (run `python -m glint_mi.setup_llvm`, as make does)")
+    pths = sorted(f for f in os.listdir(site) if f.endswith(".pth"))
+    assert pths[0] == _llvm.EARLY_PTH_NAME, pths
+    assert open(os.path.join(site, _llvm.EARLY_PTH_NAME)).read() == _llvm.EARLY_PTH_LINE
