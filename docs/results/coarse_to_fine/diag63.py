@@ -6,13 +6,16 @@ tuning room and as the mean; the share of the base's gap to `3dgs` each arm clos
     python docs/results/coarse_to_fine/diag63.py RUNS --check [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --ladder i_el,i_copy,i_photo,i_cons [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --check-arm el [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --weights [--plot PNG] [--out FILE]
 
 RUNS holds the arms' folders d63_<arm>/ (the benchmark's output, or groups/ here, their small files); a missing
 run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's preset (groups/t61_min27)
 against `3dgs` (RUNS/d63_3dgs). --ladder: the sixty-fourth session's steps (RUNS/d64_<step>, cumulative) from
 GLINT's interface alone (RUNS/d63_iface) to `3dgs`, each step's gain over the one before it and its share of the
 interface's gap to `3dgs`; the last row, the step from the ladder's last rung to `3dgs`. --check-arm ARM: on
-9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there."""
+9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there. --weights: the sixty-fifth
+session's curve of the prior terms' weight (0: RUNS/d63_noterms, 0.25: RUNS/d65_quarter, 0.5: RUNS/d65_half, 1: the
+base) per tuning room, against the base, `3dgs` and the priors (RUNS/d63_priors); --plot draws it."""
 import argparse
 import json
 from pathlib import Path
@@ -35,8 +38,9 @@ def read(folder: Path, room: str, method: str) -> dict | None:
     m = finished_metrics(run)
     if m is None:
         return None
-    sizes = json.loads((run / "report.json").read_text()).get("sizes", {})
-    return {**{k: m["metrics"].get(k) for k in COLS}, "sizes": sizes, "minutes": m["train_s"] / 60}
+    report = run / "report.json"  # a priors row trains nothing and has none
+    sizes = json.loads(report.read_text()).get("sizes", {}) if report.exists() else {}
+    return {**{k: m["metrics"].get(k) for k in COLS}, "sizes": sizes, "minutes": m.get("train_s", 0) / 60}
 
 
 def fmt(r: dict | None) -> str:
@@ -73,11 +77,15 @@ def main() -> None:
     ap.add_argument("--check", action="store_true", help="GLINT against `3dgs` on 9801-9803")
     ap.add_argument("--ladder", help="the ladder's steps in order, e.g. i_el,i_copy,i_photo,i_cons")
     ap.add_argument("--check-arm", help="an arm on 9801-9803 against GLINT at today's preset and `3dgs`")
+    ap.add_argument("--weights", action="store_true", help="the prior terms' weight curve on the tuning rooms")
+    ap.add_argument("--plot", type=Path, help="with --weights: draw the curves into this PNG")
     a = ap.parse_args()
     if a.check:
         return check(a)
     if a.check_arm:
         return check_arm(a)
+    if a.weights:
+        return weights(a)
     if a.ladder:
         return ladder(a)
     arms = a.arms.split(",")
@@ -149,6 +157,67 @@ def check_arm(a) -> None:
     else:
         lines.append("| not run | | | | | | | 0 |")
     emit(a, f"--check-arm {a.check_arm}", lines)
+
+
+WEIGHTS = {0.0: "d63_noterms", 0.25: "d65_quarter", 0.5: "d65_half"}  # 1.0: the base
+
+
+def weights(a) -> None:
+    curve = {w: {r: read(a.runs / d, r, "glint") for r in ROOMS} for w, d in WEIGHTS.items()}
+    curve[1.0] = {r: read(BASE[r], r, "glint") for r in ROOMS}
+    ref = {r: read(REF, r, "3dgs") for r in ROOMS}
+    priors = {r: read(a.runs / "d63_priors", r, "priors") for r in ROOMS}
+    rows = {f"weight {w:g}": curve[w] for w in sorted(curve)}
+    lines = per_room(ROOMS, {**rows, "`3dgs`": ref})
+    lines += ["", "| priors | normals | AbsRel |", "|---|---|---|"]
+    lines += [f"| {r} | " + ("not run | |" if priors[r] is None else
+                             f"{priors[r]['normal_mae']:.2f} | {priors[r]['absrel']:.4f} |") for r in ROOMS]
+    base = curve[1.0]
+    lines += ["", "| prior terms' weight | PSNR all / glass / off | against weight 1 | per room | against `3dgs` | "
+              "normals | AbsRel | rooms over the priors (normals, AbsRel) | rooms |", "|---|---|---|---|---|---|---|---|---|"]
+    for name, runs in rows.items():
+        done = [r for r in ROOMS if all(x[r] is not None for x in (runs, base, ref))]
+        if not done:
+            lines.append(f"| {name[7:]} | not run | | | | | | | 0 |")
+            continue
+        mean = lambda rs, k: sum(rs[r][k] for r in done) / len(done)
+        over = lambda k: sum(priors[r] is not None and runs[r][k] > priors[r][k] for r in done)
+        lines.append(f"| {name[7:]} | " + " / ".join(f"{mean(runs, k):.2f}" for k in COLS[:3]) + " | "
+                     + " / ".join(f"{mean(runs, k) - mean(base, k):+.2f}" for k in COLS[:3]) + " | "
+                     + ", ".join(f"{runs[r]['psnr'] - base[r]['psnr']:+.2f}" for r in done) + " | "
+                     + " / ".join(f"{mean(runs, k) - mean(ref, k):+.2f}" for k in COLS[:3]) + " | "
+                     + f"{mean(runs, 'normal_mae'):.2f} | {mean(runs, 'absrel'):.4f} | "
+                     + f"{over('normal_mae')}, {over('absrel')} | {len(done)} |")
+    emit(a, "--weights" + (f" --plot {a.plot}" if a.plot else ""), lines)
+    if a.plot:
+        plot_weights(a.plot, curve, ref, priors)
+
+
+def plot_weights(path: Path, curve: dict, ref: dict, priors: dict) -> None:
+    """Each tuning room's PSNR (all, on the glass), normal MAE and AbsRel against the prior terms' weight; `3dgs`
+    (PSNR) and the priors (geometry) as dashed lines in the room's colour."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = (("psnr", "PSNR (dB)", ref), ("psnr_glass", "PSNR on the glass (dB)", ref),
+              ("normal_mae", "normal MAE (deg)", priors), ("absrel", "depth AbsRel", priors))
+    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8))
+    ws = sorted(curve)
+    for (key, label, line), ax in zip(panels, axes):
+        for room, colour in zip(ROOMS, ("C0", "C1", "C2")):
+            pts = [(w, curve[w][room][key]) for w in ws if curve[w][room] is not None]
+            if pts:
+                ax.plot(*zip(*pts), "o-", color=colour, label=room)
+            if line[room] is not None and line[room].get(key) is not None:
+                ax.axhline(line[room][key], color=colour, ls="--", lw=1)
+        ax.set_xlabel("prior terms' weight (x today's w_depth, w_normal)")
+        ax.set_title(label + (" - dashed: `3dgs`" if line is ref else " - dashed: the priors"), fontsize=9)
+        ax.set_xticks(ws)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("GLINT at 40 epochs of 96 x 54, seed 0, tuning rooms: the prior terms' weight", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 def check(a) -> None:
