@@ -9,9 +9,12 @@ from __future__ import annotations
 import os
 import sys
 
-# The Ctrl-C hooks come first, before this package imports anything: a Ctrl-C that lands in an import lock's weakref
-# callback while the imports below run (0.05 s into a command on a loaded machine) would otherwise be printed as
-# 'Exception ignored ... Traceback ... KeyboardInterrupt' and lost.
+# The Ctrl-C hooks come first, before this package imports anything else: a Ctrl-C that lands in an import lock's
+# weakref callback while the imports below run (0.05 s into a command on a loaded machine) would otherwise be printed
+# as 'Exception ignored ... Traceback ... KeyboardInterrupt' and lost (glint_mi._interrupt).
+from glint_mi._interrupt import install as _install_interrupt_hook
+
+_install_interrupt_hook()
 
 
 def _quiet_interrupt(kind, value, tb, _previous=sys.excepthook):
@@ -29,27 +32,10 @@ def _quiet_interrupt(kind, value, tb, _previous=sys.excepthook):
     _previous(kind, value, tb)
 
 
-def _interrupt_again(unraisable, _previous=sys.unraisablehook):
-    """A Ctrl-C that lands in a callback Python cannot raise from (an import lock's weakref callback, seen 0.05-0.1 s
-    into a command) would print 'Exception ignored ... KeyboardInterrupt' and be lost: deliver it again, to be raised
-    where the command handles it. Not from here: signal.raise_signal and _thread.interrupt_main both raise it at
-    once, inside this hook, where it is lost again; a thread marks it pending 10 ms later, when the hook has returned
-    (a process that ends sooner needs no Ctrl-C)."""
-    if isinstance(unraisable.exc_value, KeyboardInterrupt):
-        import _thread  # built in and loaded at start-up, as time is: no import runs here
-        import time
-
-        _thread.start_new_thread(lambda: (time.sleep(0.01), _thread.interrupt_main()), ())
-        return
-    _previous(unraisable)
-
-
 if sys.excepthook is sys.__excepthook__:  # leave IPython's and other hosts' hooks alone
     sys.excepthook = _quiet_interrupt
-if sys.unraisablehook is sys.__unraisablehook__:  # the start-up hook (_llvm.EARLY_PTH_LINE) may have set its own
-    sys.unraisablehook = _interrupt_again
 
-import contextlib  # noqa: E402 (after the hooks, as said above)
+import contextlib  # noqa: E402 (after the hook, as said above)
 
 from glint_mi._llvm import LLVMError, check_llvm, configure_environment  # noqa: E402
 

@@ -86,20 +86,22 @@ def install_pth() -> str:
     import sysconfig
 
     site = sysconfig.get_paths()["purelib"]
-    for name, line in ((EARLY_PTH_NAME, EARLY_PTH_LINE), (PTH_NAME, PTH_LINE)):
+    for name, line in ((EARLY_PTH_NAME, early_pth_line()), (PTH_NAME, PTH_LINE)):
         with open(os.path.join(site, name), "w") as f:
             f.write(line)
     return os.path.join(site, PTH_NAME)
 
 
-# glint_mi._interrupt_again as a start-up hook, read before any other .pth file: a KeyboardInterrupt that Python could
-# not raise (it came in a callback) is marked pending again 10 ms later by a thread, to be raised in the next code
-# that can raise it; anything else goes to the hook that was there. No import runs: _thread and time are built in and
-# loaded before site. glint_mi's own hook is set only where this one is not.
-EARLY_PTH_LINE = ("import sys, _thread, time; exec('def _glint_unraisable(u, _p=sys.unraisablehook, _t=_thread, "
-                  "_s=time.sleep):\\n if isinstance(u.exc_value, KeyboardInterrupt): _t.start_new_thread(lambda: "
-                  "(_s(0.01), _t.interrupt_main()), ())\\n else: _p(u)"
-                  "\\nif sys.unraisablehook is sys.__unraisablehook__: sys.unraisablehook = _glint_unraisable')\n")
+def early_pth_line() -> str:
+    """The start-up file read before every other .pth: it runs glint_mi/_interrupt.py by its path (the editable
+    install's finder, read after it, is what makes the package importable) and sets its hook; a file no longer there
+    (the checkout moved) is skipped, as `make` writes the line again."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "_interrupt.py")
+    code = (f"try:\n f = open({path!r})\nexcept OSError:\n pass\nelse:\n"
+            f" with f:\n  g = {{'__name__': 'glint_mi_startup_interrupt'}}; exec(compile(f.read(), {path!r}, 'exec'), g)"
+            f"\n g['install']()")
+    return f"import sys; exec({code!r})\n"
+
 
 # the hook runs inside Python's start-up (site), where a KeyboardInterrupt is a "Fatal Python error" with a traceback:
 # a Ctrl-C that lands in it ends the process with one line and status 130, as it would a moment later

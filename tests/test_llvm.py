@@ -94,7 +94,7 @@ def test_a_ctrl_c_landing_in_a_callback_is_raised_again(hook):
     import subprocess
     import sys
 
-    first = (f"exec({_llvm.EARLY_PTH_LINE!r})\n" if hook == "start-up" else
+    first = (f"exec({_llvm.early_pth_line()!r})\n" if hook == "start-up" else
              f"import sys; sys.path.insert(0, {str(ROOT)!r}); import glint_mi\n")
     r = subprocess.run([sys.executable, "-S", "-c", first + LOST_IN_A_CALLBACK], capture_output=True, text=True,
                        timeout=120)
@@ -112,4 +112,4 @@ def test_the_interrupt_hook_is_read_before_every_other_startup_file():
         pytest.skip("start-up hooks not installed (run `python -m glint_mi.setup_llvm`, as make does)")
     pths = sorted(f for f in os.listdir(site) if f.endswith(".pth"))
     assert pths[0] == _llvm.EARLY_PTH_NAME, pths
-    assert open(os.path.join(site, _llvm.EARLY_PTH_NAME)).read() == _llvm.EARLY_PTH_LINE
+    assert open(os.path.join(site, _llvm.EARLY_PTH_NAME)).read() == _llvm.early_pth_line()

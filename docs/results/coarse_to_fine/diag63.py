@@ -167,22 +167,22 @@ def weights(a) -> None:
     curve[1.0] = {r: read(BASE[r], r, "glint") for r in ROOMS}
     ref = {r: read(REF, r, "3dgs") for r in ROOMS}
     priors = {r: read(a.runs / "d63_priors", r, "priors") for r in ROOMS}
-    rows = {f"weight {w:g}": curve[w] for w in sorted(curve)}
-    lines = per_room(ROOMS, {**rows, "`3dgs`": ref})
+    lines = per_room(ROOMS, {**{f"weight {w:g}": curve[w] for w in sorted(curve)}, "`3dgs`": ref})
     lines += ["", "| priors | normals | AbsRel |", "|---|---|---|"]
     lines += [f"| {r} | " + ("not run | |" if priors[r] is None else
                              f"{priors[r]['normal_mae']:.2f} | {priors[r]['absrel']:.4f} |") for r in ROOMS]
     base = curve[1.0]
     lines += ["", "| prior terms' weight | PSNR all / glass / off | against weight 1 | per room | against `3dgs` | "
               "normals | AbsRel | rooms over the priors (normals, AbsRel) | rooms |", "|---|---|---|---|---|---|---|---|---|"]
-    for name, runs in rows.items():
+    for w in sorted(curve):
+        runs = curve[w]
         done = [r for r in ROOMS if all(x[r] is not None for x in (runs, base, ref))]
         if not done:
-            lines.append(f"| {name[7:]} | not run | | | | | | | 0 |")
+            lines.append(f"| {w:g} | not run | | | | | | | 0 |")
             continue
         mean = lambda rs, k: sum(rs[r][k] for r in done) / len(done)
         over = lambda k: sum(priors[r] is not None and runs[r][k] > priors[r][k] for r in done)
-        lines.append(f"| {name[7:]} | " + " / ".join(f"{mean(runs, k):.2f}" for k in COLS[:3]) + " | "
+        lines.append(f"| {w:g} | " + " / ".join(f"{mean(runs, k):.2f}" for k in COLS[:3]) + " | "
                      + " / ".join(f"{mean(runs, k) - mean(base, k):+.2f}" for k in COLS[:3]) + " | "
                      + ", ".join(f"{runs[r]['psnr'] - base[r]['psnr']:+.2f}" for r in done) + " | "
                      + " / ".join(f"{mean(runs, k) - mean(ref, k):+.2f}" for k in COLS[:3]) + " | "
