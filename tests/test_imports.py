@@ -81,9 +81,10 @@ def test_readers_do_not_import_the_generator():
 
 
 # The package's top level: the commands (python -m glint_mi.X) and what every part shares. A library module goes in
-# the folder of what it is for (data, dataset, model, training, evaluation, native).
-TOP_LEVEL = {"__init__", "_llvm", "setup_llvm", "benchmark", "crosscheck", "demo", "evaluate", "optimize", "scene",
-             "config", "methods", "conventions", "machine", "runs",
+# the folder of what it is for (data, dataset, model, training, evaluation, native). _llvm and _interrupt are the
+# package's start-up (the LLVM it loads, the Ctrl-C hook), which the start-up files run before the package loads.
+TOP_LEVEL = {"__init__", "_llvm", "_interrupt", "setup_llvm", "benchmark", "crosscheck", "demo", "evaluate",
+             "optimize", "scene", "config", "methods", "conventions", "machine", "runs",
              "tradeoff"}  # a study that trains and evaluates runs, above training and evaluation
 FOLDERS = {"data", "dataset", "model", "training", "evaluation", "native"}
 
