@@ -173,6 +173,15 @@ class LossConfig:
     #                                      to ref deg. 0, or a not measurable (no SfM tracks; said in the log and
     #                                      report): it falls to 0. Needs prior_decay_terms: normal. Decided on the
     #                                      tuning rooms at three levels of prior error (docs/results/prior_sweep)
+    prior_weight_ref: float = 0.0        # deg; > 0: the prior terms prior_weight_terms names weigh min(1, (ref / a)^2)
+    #                                      of their weight through the whole run (before prior_decay's fall, which
+    #                                      acts on top), a the MEAN angle between the normal prior and the SfM points'
+    #                                      planes (RayBank.normal_prior_sfm_agreement; the floor reads its median, which
+    #                                      under-reads a prior whose error sits in a few regions: 7303's 30-deg priors
+    #                                      read 14.5 median, 26.4 mean). Not measurable (no normal prior, < 50 planar
+    #                                      tracks): full weight, said in the log and report (prior_weight). 0: off
+    #                                      (the paper's constant weights). docs/results/coarse_to_fine, 66th session
+    prior_weight_terms: str = "normal"   # which prior terms prior_weight_ref scales: normal | depth,normal | depth
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
@@ -564,6 +573,10 @@ class TrainConfig:
         need(self.prior_decay_ref == 0 or self.prior_decay_terms == "normal", "prior_decay_ref",
              "sets the normal prior's floor from its agreement with the SfM points: use it with prior_decay_terms: "
              "normal, or set prior_decay_ref=0 to let the depth prior fall too")
+        need(math.isfinite(self.prior_weight_ref) and self.prior_weight_ref >= 0, "prior_weight_ref",
+             "is an angle in degrees, >= 0 (0: the prior terms keep their weights)")
+        need(self.prior_weight_terms in ("depth,normal", "normal", "depth"), "prior_weight_terms",
+             "use depth,normal, normal or depth")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "secondary_until", "normal_from",
                   "trans_from", "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from",
                   "dist_from", "prior_decay"):

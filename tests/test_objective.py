@@ -121,7 +121,7 @@ def test_stage_schedule(variant):
     from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", variant, iterations=600, sh_degree=2)
-    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, sets={"interface": 0, "transmission": 0, "reflection": 0},
+    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, prior_weight={}, sets={"interface": 0, "transmission": 0, "reflection": 0},
                            dropped={},
                            bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
     stage = lambda it: Trainer.stage(fake, it)
@@ -209,7 +209,7 @@ def test_2dgs_runs_its_release_schedule_and_terms(tmp_path):
         (10.0, 0.1, 0.05, 7 / 30, "median")
     g = config_for("glint", "tiny", iterations=300)
     assert g.w_dist == 0 and g.consistency_from == 0 and g.consistency_depth == "expected"
-    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, sets={"interface": 0}, dropped={},
+    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, prior_weight={}, sets={"interface": 0}, dropped={},
                            bank=SimpleNamespace(has=set(), sfm_depth=None))
     stage = lambda it: Trainer.stage(fake, it)
     assert not stage(c.at(0.1) - 1)["distortion"] and stage(c.at(0.1))["distortion"]
@@ -280,7 +280,7 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
 
     c = TrainConfig.for_preset("tiny", iterations=200, prior_decay=0.5, prior_decay_terms="depth,normal",
                                prior_decay_ref=0.0, components="interface")
-    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, sets={"interface": 0}, dropped={},
+    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, prior_weight={}, sets={"interface": 0}, dropped={},
                            bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
     scale = lambda it: Trainer.stage(fake, it)["prior_scale"]
     assert scale(0) == scale(100) == 1.0 and scale(150) == pytest.approx(0.5) and scale(200) == 0.0
@@ -324,6 +324,18 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     assert only_n["depth"] == pytest.approx(full["depth"], rel=1e-5)
     with pytest.raises(ConfigError, match="prior_decay_terms"):
         TrainConfig.for_preset("tiny", prior_decay_terms="albedo")
+    # prior_weight_ref: a term's share from the priors' agreement with SfM multiplies its schedule, on that term only
+    shared = O.batch_objective(c_n, b, out, {**st, "prior_scale": 0.25, "prior_weight": {"normal": 0.4}}, ray, fwd,
+                               len(tr.bank.views), tr.extent)[0]
+    assert shared["normal"] == pytest.approx(0.1 * full["normal"], rel=1e-5)
+    assert shared["depth"] == pytest.approx(full["depth"], rel=1e-5)
+    both = O.batch_objective(c, b, out, {**st, "prior_scale": 1.0, "prior_weight": {"normal": 0.5, "depth": 0.5}},
+                             ray, fwd, len(tr.bank.views), tr.extent)[0]
+    assert both["normal"] == pytest.approx(0.5 * full["normal"], rel=1e-5)
+    assert both["depth"] == pytest.approx(0.5 * full["depth"], rel=1e-5)
+    assert both["l1"] == pytest.approx(full["l1"], rel=1e-6)
+    with pytest.raises(ConfigError, match="prior_weight_terms"):
+        TrainConfig.for_preset("tiny", prior_weight_terms="albedo").validate()
 
 
 @pytest.mark.parametrize("cover, share, kept", [(0.0041, 0.0063, True),    # tuning room 7301 with its glass case

@@ -1011,9 +1011,10 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     """normal_prior_sfm_agreement measures the normal prior against the planes of the SfM points without ground
     truth: ~0 for a prior equal to the true normals, the tilt for one tilted by a known angle everywhere (each
     normal turned 20 deg about an axis perpendicular to it); no points or no normal prior say why. The floor
-    prior_decay_ref gives follows (ref / a)^2, capped at 1, and 0 where it was not measured."""
+    prior_decay_ref gives follows (ref / a)^2, capped at 1, and 0 where it was not measured; prior_weight_ref's share
+    follows (ref / mean)^2 on the terms it names, and 1 where the agreement was not measured."""
     from glint_mi.training.batch import RayBank
-    from glint_mi.training.inputs import normal_prior_floor
+    from glint_mi.training.inputs import normal_prior_floor, prior_weight_scale
 
     ds = load_dataset(room)
     bank = RayBank(ds.train_views, room)
@@ -1044,6 +1045,20 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
         tiny_cfg(prior_decay_ref=8.0, prior_decay_terms="depth,normal").validate()
     with pytest.raises(ConfigError, match="prior_decay_ref"):
         tiny_cfg(prior_decay_ref=-1.0).validate()
+    # prior_weight_ref: the named terms' share through the run follows (ref / mean)^2, capped at 1; none without
+    # the measurement or with ref 0 (the terms keep their weights)
+    ag = {"median_deg": 10.0, "mean_deg": 20.0}
+    share = lambda ag, **kw: prior_weight_scale(tiny_cfg(**kw), ag)[0]
+    assert share(ag, prior_weight_ref=10.0) == {"normal": pytest.approx(0.25)}
+    assert share(ag, prior_weight_ref=10.0, prior_weight_terms="depth,normal") == {"depth": pytest.approx(0.25),
+                                                                                  "normal": pytest.approx(0.25)}
+    assert share(ag, prior_weight_ref=40.0) == {"normal": 1.0} and share(ag, prior_weight_ref=0.0) == {}
+    assert share(exact, prior_weight_ref=10.0) == {"normal": 1.0}  # exact priors agree to < 1 deg on the mean too
+    assert share(tilted, prior_weight_ref=10.0)["normal"] == pytest.approx((10.0 / tilted["mean_deg"]) ** 2)
+    scale, why = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0), {"median_deg": None, "why": "no tracks"})
+    assert scale == {} and "no tracks" in why
+    with pytest.raises(ConfigError, match="prior_weight_ref"):
+        tiny_cfg(prior_weight_ref=float("nan")).validate()
 
 
 def test_depth_prior_weights_follow_the_priors_agreement_with_sfm(room, rng):

@@ -76,7 +76,7 @@ def assemble(tr, resume: bool) -> None:
             glass_of(v)
     tr.bank = training_inputs(tr.ds, cfg, "transmission" in tr.sets, tr.report, tr.log,
                               getattr(tr, "_resume_affine", None))  # set by _load_checkpoint only
-    tr.prior_floor = normal_prior_schedule(tr.bank, tr.ds, cfg, tr.report, tr.log)
+    tr.prior_floor, tr.prior_weight = normal_prior_schedule(tr.bank, tr.ds, cfg, tr.report, tr.log)
     coarse_banks(tr)
     if not resume:
         glass_cue_check(tr)  # may give the run the 3dgs profile (another kernel): the strategy is built after it

@@ -66,10 +66,12 @@ def training_inputs(ds: Dataset, cfg: TrainConfig, has_transmission: bool, repor
     return bank
 
 
-def normal_prior_schedule(bank: RayBank, ds: Dataset, cfg: TrainConfig, report: dict, log=print) -> float:
-    """The run's floor for the falling normal prior (:func:`normal_prior_floor`), from the normal prior's agreement
-    with the SfM points' planes measured once on the run's bank (not on coarse_to_fine's); both go to ``report``
-    (``normal_prior_sfm``, ``prior_floor``) and the log."""
+def normal_prior_schedule(bank: RayBank, ds: Dataset, cfg: TrainConfig, report: dict,
+                          log=print) -> tuple[float, dict]:
+    """The run's floor for the falling normal prior (:func:`normal_prior_floor`) and each prior term's factor
+    through the run (:func:`prior_weight_scale`), from the normal prior's agreement with the SfM points' planes
+    measured once on the run's bank (not on coarse_to_fine's); each goes to ``report`` (``normal_prior_sfm``,
+    ``prior_floor``, ``prior_weight``) and the log."""
     ag = None
     if "normal" in bank.has:
         ag = bank.normal_prior_sfm_agreement(ds.observations(), ds.points)
@@ -81,7 +83,11 @@ def normal_prior_schedule(bank: RayBank, ds: Dataset, cfg: TrainConfig, report: 
     report["prior_floor"] = {"floor": floor, "why": why}
     if cfg.prior_decay < 1.0:
         log(why)
-    return floor
+    scale, why = prior_weight_scale(cfg, ag)
+    if cfg.prior_weight_ref > 0:
+        report["prior_weight"] = {"scale": scale, "why": why}
+        log(why)
+    return floor, scale
 
 
 def normal_prior_floor(cfg: TrainConfig, agreement: dict | None) -> tuple[float, str]:
@@ -100,3 +106,22 @@ def normal_prior_floor(cfg: TrainConfig, agreement: dict | None) -> tuple[float,
     f = float(inverse_variance_share(cfg.prior_decay_ref, a))
     return f, (f"the normal prior falls to {f:.2f} of its weight: it agrees with the SfM points' planes to {a:.1f} "
                f"deg, prior_decay_ref {cfg.prior_decay_ref:g} deg")
+
+
+def prior_weight_scale(cfg: TrainConfig, agreement: dict | None) -> tuple[dict, str]:
+    """Each prior term's factor through the run (``prior_weight_ref``): min(1, (ref / a)^2) on the terms
+    ``prior_weight_terms`` names, a the mean angle between the normal prior and the SfM points' planes; 1 on the others,
+    and on all of them with prior_weight_ref 0 or where a was not measured (then said). Returns ({term: factor}, why)."""
+    if cfg.prior_weight_ref <= 0:
+        return {}, "prior_weight_ref 0: the prior terms keep their weights"
+    a = (agreement or {}).get("mean_deg")
+    if a is None:
+        why = (agreement or {}).get("why", "no normal prior")
+        return {}, (f"the prior terms keep their weights: the normal prior's agreement with the SfM points was not "
+                    f"measured ({why})")
+    f = float(inverse_variance_share(cfg.prior_weight_ref, a))
+    terms = cfg.prior_weight_terms.split(",")
+    return {t: f for t in terms}, (f"the {' and '.join(terms)} prior{'s' if len(terms) > 1 else ''} weigh {f:.2f} of "
+                                   f"{'their' if len(terms) > 1 else 'its'} weight: the normal prior agrees with the "
+                                   f"SfM points' planes to {a:.1f} deg on the mean, prior_weight_ref "
+                                   f"{cfg.prior_weight_ref:g} deg")

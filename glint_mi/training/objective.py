@@ -53,8 +53,10 @@ class Inputs:
     _masks: tuple | None = None
 
     def decay(self, term: str):
-        """The schedule's factor on the prior term ``term`` (prior_decay, for the terms prior_decay_terms names)."""
-        return self.prior_w if term in self.decays else 1.0
+        """The factor on the prior term ``term``: its schedule (prior_decay, for the terms prior_decay_terms names)
+        times its share from the priors' agreement with SfM (prior_weight_ref; a constant of the run)."""
+        share = self.st.get("prior_weight", {}).get(term, 1.0)
+        return (self.prior_w if term in self.decays else 1.0) * share
 
     @property
     def traced_t(self) -> bool:

@@ -91,6 +91,7 @@ class Trainer:
         self._nonfinite_read: dict[str, int] = {}  # update: device's zeroed-gradient counts already reported
         self.report: dict = {"components": {}, "init": {}, "events": []}
         self.prior_floor = 0.0  # the falling normal prior's last share (builder: prior_decay_ref)
+        self.prior_weight: dict = {}  # prior term -> its factor through the run (builder: prior_weight_ref)
         self.rng = np.random.default_rng(cfg.seed)
         self.stop_requested = False
         # phase(name) -> context manager around each part of a step; benchmarks/profile_step.py times them
@@ -183,6 +184,7 @@ class Trainer:
                 # iteration (0, or the normal prior's share from its agreement with SfM: prior_decay_ref)
                 "prior_scale": 1.0 if c.prior_decay >= 1.0 else self.prior_floor + (1.0 - self.prior_floor) *
                 min(1.0, max(0.0, (c.iterations - it) / max(1, c.iterations - c.at(c.prior_decay)))),
+                "prior_weight": self.prior_weight,  # prior term -> factor (prior_weight_ref; absent: 1)
                 "consistency": c.w_consistency > 0 and on(c.consistency_from),
                 "distortion": c.w_dist > 0 and on(c.dist_from),
                 "direct": has_t and c.w_direct > 0,

@@ -2,18 +2,18 @@
 each arm of s63d.sh against GLINT at today's preset (the committed base runs) and `3dgs` (groups/w62_3dgs_p27), per
 tuning room and as the mean; the share of the base's gap to `3dgs` each arm closes.
 
-    python docs/results/coarse_to_fine/diag63.py RUNS [--arms copy,noterms,el,iface] [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS [--arms copy,noterms,el,iface] [--tag d63] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --check [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --ladder i_el,i_copy,i_photo,i_cons [--out FILE]
-    python docs/results/coarse_to_fine/diag63.py RUNS --check-arm el [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --check-arm el [--tag d63] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --weights [--plot PNG] [--out FILE]
 
-RUNS holds the arms' folders d63_<arm>/ (the benchmark's output, or groups/ here, their small files); a missing
-run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's preset (groups/t61_min27)
-against `3dgs` (RUNS/d63_3dgs). --ladder: the sixty-fourth session's steps (RUNS/d64_<step>, cumulative) from
-GLINT's interface alone (RUNS/d63_iface) to `3dgs`, each step's gain over the one before it and its share of the
-interface's gap to `3dgs`; the last row, the step from the ladder's last rung to `3dgs`. --check-arm ARM: on
-9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there. --weights: the sixty-fifth
+RUNS holds the arms' folders d63_<arm>/ (--tag: another session's prefix; the benchmark's output, or groups/ here,
+their small files); a missing run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's
+preset (groups/t61_min27) against `3dgs` (RUNS/d63_3dgs). --ladder: the sixty-fourth session's steps (RUNS/d64_<step>,
+cumulative) from GLINT's interface alone (RUNS/d63_iface) to `3dgs`, each step's gain over the one before it and its
+share of the interface's gap to `3dgs`; the last row, the step from the ladder's last rung to `3dgs`. --check-arm ARM:
+on 9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there. --weights: the sixty-fifth
 session's curve of the prior terms' weight (0: RUNS/d63_noterms, 0.25: RUNS/d65_quarter, 0.5: RUNS/d65_half, 1: the
 base) per tuning room, against the base, `3dgs` and the priors (RUNS/d63_priors); --plot draws it."""
 import argparse
@@ -74,6 +74,8 @@ def main() -> None:
     ap.add_argument("runs", type=Path)
     ap.add_argument("--arms", default="copy,noterms,el,iface")
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--tag", default="d63", help="the arms' folder prefix for --arms and --check-arm (RUNS/<tag>_<arm>;"
+                    " the sixty-sixth session's: d66)")
     ap.add_argument("--check", action="store_true", help="GLINT against `3dgs` on 9801-9803")
     ap.add_argument("--ladder", help="the ladder's steps in order, e.g. i_el,i_copy,i_photo,i_cons")
     ap.add_argument("--check-arm", help="an arm on 9801-9803 against GLINT at today's preset and `3dgs`")
@@ -91,7 +93,7 @@ def main() -> None:
     arms = a.arms.split(",")
     rows = {"`3dgs` (today's preset)": {r: read(REF, r, "3dgs") for r in ROOMS},
             "GLINT, today's preset": {r: read(BASE[r], r, "glint") for r in ROOMS}}
-    rows.update({f"`{arm}`": {r: read(a.runs / f"d63_{arm}", r, "glint") for r in ROOMS} for arm in arms})
+    rows.update({f"`{arm}`": {r: read(a.runs / f"{a.tag}_{arm}", r, "glint") for r in ROOMS} for arm in arms})
     lines = per_room(ROOMS, rows)
     lines += ["", "| mean of the rooms each ran | PSNR all / glass / off | against the base | share of the gap to "
               "`3dgs` closed | normals | AbsRel | rooms |", "|---|---|---|---|---|---|---|"]
@@ -139,7 +141,7 @@ def ladder(a) -> None:
 
 def check_arm(a) -> None:
     rows = {"GLINT, today's preset": {r: read(HERE / "groups/t61_min27", r, "glint") for r in CHECK_ROOMS},
-            f"`{a.check_arm}`": {r: read(a.runs / f"d63_{a.check_arm}", r, "glint") for r in CHECK_ROOMS},
+            f"`{a.check_arm}`": {r: read(a.runs / f"{a.tag}_{a.check_arm}", r, "glint") for r in CHECK_ROOMS},
             "`3dgs` (today's preset)": {r: read(a.runs / "d63_3dgs", r, "3dgs") for r in CHECK_ROOMS}}
     lines = per_room(CHECK_ROOMS, rows)
     base, arm, ref = rows.values()
