@@ -1057,6 +1057,7 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     assert share(tilted, prior_weight_ref=10.0)["normal"] == pytest.approx((10.0 / tilted["mean_deg"]) ** 2)
     scale, why = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0), {"median_deg": None, "why": "no tracks"})
     assert scale == {} and "no tracks" in why
+    assert prior_weight_scale(tiny_cfg(prior_weight_ref=10.0), ag)[1].startswith("the normal prior weighs 0.25 of its")
     with pytest.raises(ConfigError, match="prior_weight_ref"):
         tiny_cfg(prior_weight_ref=float("nan")).validate()
 

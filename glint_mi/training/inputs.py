@@ -121,7 +121,7 @@ def prior_weight_scale(cfg: TrainConfig, agreement: dict | None) -> tuple[dict, 
                     f"measured ({why})")
     f = float(inverse_variance_share(cfg.prior_weight_ref, a))
     terms = cfg.prior_weight_terms.split(",")
-    return {t: f for t in terms}, (f"the {' and '.join(terms)} prior{'s' if len(terms) > 1 else ''} weigh {f:.2f} of "
-                                   f"{'their' if len(terms) > 1 else 'its'} weight: the normal prior agrees with the "
-                                   f"SfM points' planes to {a:.1f} deg on the mean, prior_weight_ref "
-                                   f"{cfg.prior_weight_ref:g} deg")
+    which = (f"the {' and '.join(terms)} priors weigh {f:.2f} of their weight" if len(terms) > 1 else
+             f"the {terms[0]} prior weighs {f:.2f} of its weight")
+    return {t: f for t in terms}, (f"{which}: the normal prior agrees with the SfM points' planes to {a:.1f} deg on "
+                                   f"the mean, prior_weight_ref {cfg.prior_weight_ref:g} deg")
