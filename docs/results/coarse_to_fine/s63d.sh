@@ -9,11 +9,12 @@
 # step, no priors, gives 3DGS's configuration to the field); photo, nocons: the steps i_photo and i_cons alone on the
 # whole of GLINT. The sixty-fifth session's prior weights (README, "The prior terms' weight at 40 epochs of 96 x 54"):
 # half, quarter (RUNS/d65_<arm>). The sixty-sixth session's prior weight from the priors' agreement with SfM (README,
-# "A prior weight that follows the priors' agreement with SfM"): agree_n, agree_dn (RUNS/d66_<arm>).
+# "A prior weight that follows the priors' agreement with SfM"): agree_n, agree_dn (RUNS/d66_<arm>), and base (today's
+# preset, no switch: RUNS/d66_base) for its second seed. SEED=K: that seed alone (--seed-ids K; run folders METHOD@seedK).
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
 # (the ladder's RUNS/d64_<arm>).
 set -u
-arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter agree_n agree_dn, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
+arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
 methods=glint; tag=d63
 case $arm in
   priors) switch=""; methods=priors ;;                              # the renders' check: no training
@@ -28,11 +29,12 @@ case $arm in
   i_3dgs) switch=""; methods=3dgs; tag=d64 ;;                       # the ladder's last rung: the method, no list
   half) switch="--set w_depth=0.05 --set w_normal=0.15"; tag=d65 ;;     # the prior terms at half their weight
   quarter) switch="--set w_depth=0.025 --set w_normal=0.075"; tag=d65 ;; # and at a quarter (noterms: none)
+  base) switch=""; tag=d66 ;;                                       # today's preset (its seed 0 is committed)
   agree_n) switch="--set prior_weight_ref=10"; tag=d66 ;;            # the normal prior x min(1, (10 / mean)^2)
   agree_dn) switch="--set prior_weight_ref=10 --set prior_weight_terms=depth,normal"; tag=d66 ;;  # both terms
   i_el|i_copy|i_photo|i_cons) ;;
   *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface, copyel, i_el, i_copy, i_photo, i_cons, i_3dgs," \
-          "photo, nocons, half, quarter, agree_n or agree_dn" >&2
+          "photo, nocons, half, quarter, base, agree_n or agree_dn" >&2
      exit 2 ;;
 esac
 case $arm in  # the ladder: each step keeps the ones before it
@@ -48,5 +50,6 @@ case $room in
 esac
 WT=${WT:-/work/wt63}; RUNS=${RUNS:-/work/runs63}; PY=${PY:-/work/main/.venv/bin/python}
 echo "=== $(date -u +%FT%TZ) ${tag}_$arm $room"
-WT=$WT PY=$PY bash "$(dirname "$0")/run40.sh" $methods "$data/r$room" "$RUNS/${tag}_$arm" --set eval_every=1000 $switch
+WT=$WT PY=$PY bash "$(dirname "$0")/run40.sh" $methods "$data/r$room" "$RUNS/${tag}_$arm" --set eval_every=1000 $switch \
+    ${SEED:+--seed-ids $SEED}
 echo "=== rc=$? $(date -u +%FT%TZ)"
