@@ -110,7 +110,7 @@ def main() -> None:
         lines.append(f"| {name} | {mean['psnr']:.2f} / {mean['psnr_glass']:.2f} / {mean['psnr_off_glass']:.2f} | "
                      f"{d['psnr']:+.2f} / {d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} | {share} | "
                      f"{mean['normal_mae']:.2f} | {mean['absrel']:.4f} | {len(done)} |")
-    emit(a, f"--arms {a.arms}", lines)
+    emit(a, f"--arms {a.arms}" + (f" --tag {a.tag}" if a.tag != "d63" else ""), lines)
 
 
 def ladder(a) -> None:
@@ -158,7 +158,7 @@ def check_arm(a) -> None:
                          + f"{mean(runs, 'normal_mae'):.2f} | {mean(runs, 'absrel'):.4f} | {len(done)} |")
     else:
         lines.append("| not run | | | | | | | 0 |")
-    emit(a, f"--check-arm {a.check_arm}", lines)
+    emit(a, f"--check-arm {a.check_arm}" + (f" --tag {a.tag}" if a.tag != "d63" else ""), lines)
 
 
 WEIGHTS = {0.0: "d63_noterms", 0.25: "d65_quarter", 0.5: "d65_half"}  # 1.0: the base
