@@ -7,6 +7,7 @@ tuning room and as the mean; the share of the base's gap to `3dgs` each arm clos
     python docs/results/coarse_to_fine/diag63.py RUNS --ladder i_el,i_copy,i_photo,i_cons [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --check-arm el [--tag d63] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --weights [--plot PNG] [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --seeds agree_n --tag d66 [--out FILE]
 
 RUNS holds the arms' folders d63_<arm>/ (--tag: another session's prefix; the benchmark's output, or groups/ here,
 their small files); a missing run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's
@@ -15,7 +16,8 @@ cumulative) from GLINT's interface alone (RUNS/d63_iface) to `3dgs`, each step's
 share of the interface's gap to `3dgs`; the last row, the step from the ladder's last rung to `3dgs`. --check-arm ARM:
 on 9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there. --weights: the sixty-fifth
 session's curve of the prior terms' weight (0: RUNS/d63_noterms, 0.25: RUNS/d65_quarter, 0.5: RUNS/d65_half, 1: the
-base) per tuning room, against the base, `3dgs` and the priors (RUNS/d63_priors); --plot draws it."""
+base) per tuning room, against the base, `3dgs` and the priors (RUNS/d63_priors); --plot draws it. --seeds ARM: the
+sixty-sixth session's second seed, an arm beside the base and `3dgs` at seeds 0 and 1."""
 import argparse
 import json
 from pathlib import Path
@@ -80,6 +82,8 @@ def main() -> None:
     ap.add_argument("--ladder", help="the ladder's steps in order, e.g. i_el,i_copy,i_photo,i_cons")
     ap.add_argument("--check-arm", help="an arm on 9801-9803 against GLINT at today's preset and `3dgs`")
     ap.add_argument("--weights", action="store_true", help="the prior terms' weight curve on the tuning rooms")
+    ap.add_argument("--seeds", help="an arm (RUNS/<tag>_<arm>) at seeds 0 and 1 beside the base (seed 1: "
+                    "RUNS/d66_base) and `3dgs` (seed 1: RUNS/d63_3dgs), each seed and their mean")
     ap.add_argument("--plot", type=Path, help="with --weights: draw the curves into this PNG")
     a = ap.parse_args()
     if a.check:
@@ -88,6 +92,8 @@ def main() -> None:
         return check_arm(a)
     if a.weights:
         return weights(a)
+    if a.seeds:
+        return seeds(a)
     if a.ladder:
         return ladder(a)
     arms = a.arms.split(",")
@@ -159,6 +165,37 @@ def check_arm(a) -> None:
     else:
         lines.append("| not run | | | | | | | 0 |")
     emit(a, f"--check-arm {a.check_arm}" + (f" --tag {a.tag}" if a.tag != "d63" else ""), lines)
+
+
+def seeds(a) -> None:
+    """The sixty-sixth session's second seed: GLINT at today's preset, an arm and `3dgs` at seeds 0 and 1 on the
+    tuning rooms; each seed's change of the arm over the base and of GLINT against `3dgs`, and their mean."""
+    rows = {"GLINT, today's preset": ({r: read(BASE[r], r, "glint") for r in ROOMS},
+                                      {r: read(a.runs / "d66_base", r, "glint@seed1") for r in ROOMS}),
+            f"`{a.seeds}`": ({r: read(a.runs / f"{a.tag}_{a.seeds}", r, "glint") for r in ROOMS},
+                             {r: read(a.runs / f"{a.tag}_{a.seeds}", r, "glint@seed1") for r in ROOMS}),
+            "`3dgs`": ({r: read(REF, r, "3dgs") for r in ROOMS},
+                       {r: read(a.runs / "d63_3dgs", r, "3dgs@seed1") for r in ROOMS})}
+    lines = per_room(ROOMS, {f"{name}, seed {k}": runs[k] for name, runs in rows.items() for k in (0, 1)})
+    base, arm, ref = rows.values()
+    lines += ["", "| room | seed | `3dgs` over GLINT (PSNR all / glass / off) | the arm over GLINT | the arm's normals "
+              "against GLINT's | its AbsRel against GLINT's |", "|---|---|---|---|---|---|"]
+    diff = lambda x, y, k: x[k] - y[k]
+    for room in ROOMS + ("mean",):
+        for k in (0, 1, "both"):
+            seeds_ = (0, 1) if k == "both" else (k,)
+            rooms = ROOMS if room == "mean" else (room,)
+            pairs = [(s, r) for s in seeds_ for r in rooms]
+            if any(x[s][r] is None for s, r in pairs for x in (base, arm, ref)):
+                lines.append(f"| {room} | {k} | not run | | | |")
+                continue
+            mean = lambda f: sum(f(s, r) for s, r in pairs) / len(pairs)
+            gap = " / ".join(f"{mean(lambda s, r: diff(ref[s][r], base[s][r], c)):+.2f}" for c in COLS[:3])
+            gain = " / ".join(f"{mean(lambda s, r: diff(arm[s][r], base[s][r], c)):+.2f}" for c in COLS[:3])
+            dn = mean(lambda s, r: diff(arm[s][r], base[s][r], "normal_mae"))
+            da = mean(lambda s, r: diff(arm[s][r], base[s][r], "absrel") / base[s][r]["absrel"])
+            lines.append(f"| {room} | {k} | {gap} | {gain} | {dn:+.2f} deg | {da:+.1%} |")
+    emit(a, f"--seeds {a.seeds}" + (f" --tag {a.tag}" if a.tag != "d63" else ""), lines)
 
 
 WEIGHTS = {0.0: "d63_noterms", 0.25: "d65_quarter", 0.5: "d65_half"}  # 1.0: the base
