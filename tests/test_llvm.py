@@ -72,7 +72,7 @@ def test_the_startup_hook_turns_ctrl_c_into_one_line_and_status_130():
 
 
 LOST_IN_A_CALLBACK = """
-import _signal  # a shell's background job (CI run with &) starts with SIGINT ignored: Python's handler, as in a terminal
+import _signal  # a shell's background job (CI run with &) starts with SIGINT ignored: Python's handler, as a terminal
 _signal.signal(_signal.SIGINT, _signal.default_int_handler)
 import time, weakref
 class Lock: pass

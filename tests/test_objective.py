@@ -121,7 +121,8 @@ def test_stage_schedule(variant):
     from glint_mi.training.trainer import Trainer
 
     c = TrainConfig.for_preset("tiny", variant, iterations=600, sh_degree=2)
-    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, prior_weight={}, sets={"interface": 0, "transmission": 0, "reflection": 0},
+    fake = SimpleNamespace(cfg=c, it=0, prior_floor=0.0, prior_weight={},
+                           sets={"interface": 0, "transmission": 0, "reflection": 0},
                            dropped={},
                            bank=SimpleNamespace(has={"depth", "normal"}, sfm_depth=None))
     stage = lambda it: Trainer.stage(fake, it)

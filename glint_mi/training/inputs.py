@@ -110,8 +110,9 @@ def normal_prior_floor(cfg: TrainConfig, agreement: dict | None) -> tuple[float,
 
 def prior_weight_scale(cfg: TrainConfig, agreement: dict | None) -> tuple[dict, str]:
     """Each prior term's factor through the run (``prior_weight_ref``): min(1, (ref / a)^2) on the terms
-    ``prior_weight_terms`` names, a the mean angle between the normal prior and the SfM points' planes; 1 on the others,
-    and on all of them with prior_weight_ref 0 or where a was not measured (then said). Returns ({term: factor}, why)."""
+    ``prior_weight_terms`` names, a the mean angle between the normal prior and the SfM points' planes; 1 on the
+    others, and on all of them with prior_weight_ref 0 or where a was not measured (then said). Returns
+    ({term: factor}, why)."""
     if cfg.prior_weight_ref <= 0:
         return {}, "prior_weight_ref 0: the prior terms keep their weights"
     a = (agreement or {}).get("mean_deg")
