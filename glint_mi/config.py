@@ -174,8 +174,8 @@ class LossConfig:
     #                                      report): it falls to 0. Needs prior_decay_terms: normal. Decided on the
     #                                      tuning rooms at three levels of prior error (docs/results/prior_sweep)
     prior_weight_ref: float = 0.0        # deg; > 0: the prior terms prior_weight_terms names weigh min(1, (ref / a)^2)
-    #                                      of their weight through the whole run (before prior_decay's fall, which
-    #                                      acts on top), a the MEAN angle between the normal prior and the SfM points'
+    #                                      of their weight through the whole run (prior_decay's fall multiplies
+    #                                      it), a the MEAN angle between the normal prior and the SfM points'
     #                                      planes (RayBank.normal_prior_sfm_agreement; the floor reads its median, which
     #                                      under-reads a prior whose error sits in a few regions: 7303's 30-deg priors
     #                                      read 14.5 median, 26.4 mean). Not measurable (no normal prior, < 50 planar

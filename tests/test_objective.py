@@ -290,6 +290,8 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     fake.cfg = TrainConfig.for_preset("tiny", iterations=200)  # the default: the normal prior falls from half the run
     assert fake.cfg.prior_decay_terms == "normal" and scale(100) == 1.0 and scale(150) == pytest.approx(0.5)
     fake.prior_floor = 0.4  # prior_decay_ref: the normal prior falls to its floor from SfM agreement, not to 0
+    fake.prior_weight = {"normal": 0.3}  # prior_weight_ref: the run's shares go to the objective with each stage
+    assert Trainer.stage(fake, 150)["prior_weight"] == {"normal": 0.3}
     assert scale(100) == 1.0 and scale(150) == pytest.approx(0.7) and scale(200) == pytest.approx(0.4)
 
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)
@@ -337,6 +339,17 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     assert both["l1"] == pytest.approx(full["l1"], rel=1e-6)
     with pytest.raises(ConfigError, match="prior_weight_terms"):
         TrainConfig.for_preset("tiny", prior_weight_terms="albedo").validate()
+    # the run's shares reach the objective through its stage: none at prior_weight_ref 0 (this run); on the bundled
+    # room's own SfM points and priors, ref 10 gives the normal prior min(1, (10 / mean)^2), reported as used
+    from glint_mi.training.inputs import normal_prior_schedule
+
+    assert tr.prior_weight == {} and st["prior_weight"] is tr.prior_weight and "prior_weight" not in tr.report
+    report = {}
+    c10 = TrainConfig.for_preset("tiny", iterations=200, prior_weight_ref=10.0, components="interface")
+    _, scale10 = normal_prior_schedule(tr.bank, tr.ds, c10, report, log=lambda *a: None)
+    mean = report["normal_prior_sfm"]["mean_deg"]
+    assert mean is not None and scale10 == {"normal": pytest.approx(min(1.0, (10.0 / mean) ** 2))}
+    assert report["prior_weight"]["scale"] == scale10
 
 
 @pytest.mark.parametrize("cover, share, kept", [(0.0041, 0.0063, True),    # tuning room 7301 with its glass case

@@ -63,6 +63,11 @@ def per_room(rooms, rows: dict, what: str = "run", sizes: str = "Gaussians (sets
     return lines
 
 
+def tagged(a) -> str:
+    """The --tag flag as the printed command gives it (none for the default d63)."""
+    return f" --tag {a.tag}" if a.tag != "d63" else ""
+
+
 def emit(a, flag: str, lines: list[str]) -> None:
     """Print the table and, with --out, write it under the command that made it."""
     text = "\n".join(lines) + "\n"
@@ -116,7 +121,7 @@ def main() -> None:
         lines.append(f"| {name} | {mean['psnr']:.2f} / {mean['psnr_glass']:.2f} / {mean['psnr_off_glass']:.2f} | "
                      f"{d['psnr']:+.2f} / {d['psnr_glass']:+.2f} / {d['psnr_off_glass']:+.2f} | {share} | "
                      f"{mean['normal_mae']:.2f} | {mean['absrel']:.4f} | {len(done)} |")
-    emit(a, f"--arms {a.arms}" + (f" --tag {a.tag}" if a.tag != "d63" else ""), lines)
+    emit(a, f"--arms {a.arms}" + tagged(a), lines)
 
 
 def ladder(a) -> None:
@@ -164,7 +169,7 @@ def check_arm(a) -> None:
                          + f"{mean(runs, 'normal_mae'):.2f} | {mean(runs, 'absrel'):.4f} | {len(done)} |")
     else:
         lines.append("| not run | | | | | | | 0 |")
-    emit(a, f"--check-arm {a.check_arm}" + (f" --tag {a.tag}" if a.tag != "d63" else ""), lines)
+    emit(a, f"--check-arm {a.check_arm}" + tagged(a), lines)
 
 
 def seeds(a) -> None:
@@ -195,7 +200,7 @@ def seeds(a) -> None:
             dn = mean(lambda s, r: diff(arm[s][r], base[s][r], "normal_mae"))
             da = mean(lambda s, r: diff(arm[s][r], base[s][r], "absrel") / base[s][r]["absrel"])
             lines.append(f"| {room} | {k} | {gap} | {gain} | {dn:+.2f} deg | {da:+.1%} |")
-    emit(a, f"--seeds {a.seeds}" + (f" --tag {a.tag}" if a.tag != "d63" else ""), lines)
+    emit(a, f"--seeds {a.seeds}" + tagged(a), lines)
 
 
 WEIGHTS = {0.0: "d63_noterms", 0.25: "d65_quarter", 0.5: "d65_half"}  # 1.0: the base
