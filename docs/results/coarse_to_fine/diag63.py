@@ -8,6 +8,7 @@ tuning room and as the mean; the share of the base's gap to `3dgs` each arm clos
     python docs/results/coarse_to_fine/diag63.py RUNS --check-arm el [--tag d63] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --weights [--plot PNG] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --seeds agree_n --tag d66 [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --trade [--plot PNG] [--out FILE]
 
 RUNS holds the arms' folders d63_<arm>/ (--tag: another session's prefix; the benchmark's output, or groups/ here,
 their small files); a missing run is reported as not run. --check: on the check rooms 9801-9803, GLINT at today's
@@ -17,7 +18,9 @@ share of the interface's gap to `3dgs`; the last row, the step from the ladder's
 on 9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there. --weights: the sixty-fifth
 session's curve of the prior terms' weight (0: RUNS/d63_noterms, 0.25: RUNS/d65_quarter, 0.5: RUNS/d65_half, 1: the
 base) per tuning room, against the base, `3dgs` and the priors (RUNS/d63_priors); --plot draws it. --seeds ARM: the
-sixty-sixth session's second seed, an arm beside the base and `3dgs` at seeds 0 and 1."""
+sixty-sixth session's second seed, an arm beside the base and `3dgs` at seeds 0 and 1. --trade: every arm run on the
+whole of GLINT at seed 0 on the three tuning rooms (TRADE), its mean PSNR against its mean normals and AbsRel, beside
+`3dgs` and the priors; --plot draws it."""
 import argparse
 import json
 from pathlib import Path
@@ -89,7 +92,8 @@ def main() -> None:
     ap.add_argument("--weights", action="store_true", help="the prior terms' weight curve on the tuning rooms")
     ap.add_argument("--seeds", help="an arm (RUNS/<tag>_<arm>) at seeds 0 and 1 beside the base (seed 1: "
                     "RUNS/d66_base) and `3dgs` (seed 1: RUNS/d63_3dgs), each seed and their mean")
-    ap.add_argument("--plot", type=Path, help="with --weights: draw the curves into this PNG")
+    ap.add_argument("--trade", action="store_true", help="every whole-GLINT arm's PSNR against its geometry")
+    ap.add_argument("--plot", type=Path, help="with --weights or --trade: draw it into this PNG")
     a = ap.parse_args()
     if a.check:
         return check(a)
@@ -99,6 +103,8 @@ def main() -> None:
         return weights(a)
     if a.seeds:
         return seeds(a)
+    if a.trade:
+        return trade(a)
     if a.ladder:
         return ladder(a)
     arms = a.arms.split(",")
@@ -260,6 +266,65 @@ def plot_weights(path: Path, curve: dict, ref: dict, priors: dict) -> None:
         ax.set_xticks(ws)
     axes[0].legend(fontsize=8)
     fig.suptitle("GLINT at 40 epochs of 96 x 54, seed 0, tuning rooms: the prior terms' weight", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+# Every arm run on the whole of GLINT (not the ladder's interface alone) on 7301-7303 at seed 0: folder, what it sets.
+TRADE = {"d63_copy": "3DGS's clones", "d63_el": "ellipsoids", "d63_noterms": "no prior term",
+         "d65_half": "prior terms x 0.5", "d65_quarter": "prior terms x 0.25", "d66_agree_n": "normal prior x SfM share",
+         "d66_agree_dn": "prior terms x SfM share", "d64_nocons": "no consistency term",
+         "d67_freesf": "no geometry term", "d67_free": "no geometry term, ellipsoids"}
+
+
+def trade(a) -> None:
+    """What each arm gives up in geometry for its PSNR: the mean of the three tuning rooms at seed 0."""
+    rows = {"GLINT, today's preset": {r: read(BASE[r], r, "glint") for r in ROOMS}}
+    rows.update({f"`{d.split('_', 1)[1]}` ({what})": {r: read(a.runs / d, r, "glint") for r in ROOMS}
+                 for d, what in TRADE.items()})
+    ref = {r: read(REF, r, "3dgs") for r in ROOMS}
+    priors = {r: read(a.runs / "d63_priors", r, "priors") for r in ROOMS}
+    full = lambda runs: all(runs[r] is not None for r in ROOMS)
+    mean = lambda runs, k: sum(runs[r][k] for r in ROOMS) / len(ROOMS)
+    lines = ["| run (seed 0, 7301-7303) | PSNR all / glass / off | against `3dgs` | normals | AbsRel | "
+             "rooms over the priors (normals, AbsRel) |", "|---|---|---|---|---|---|"]
+    points = {}
+    for name, runs in {**rows, "`3dgs`": ref}.items():
+        if not full(runs):
+            lines.append(f"| {name} | not run on the three rooms | | | | |")
+            continue
+        over = lambda k: sum(priors[r] is not None and runs[r][k] > priors[r][k] for r in ROOMS)
+        lines.append(f"| {name} | " + " / ".join(f"{mean(runs, k):.2f}" for k in COLS[:3]) + " | "
+                     + (" / ".join(f"{mean(runs, k) - mean(ref, k):+.2f}" for k in COLS[:3]) if full(ref) else "-")
+                     + f" | {mean(runs, 'normal_mae'):.2f} | {mean(runs, 'absrel'):.4f} | "
+                     + f"{over('normal_mae')}, {over('absrel')} |")
+        points[name] = {k: mean(runs, k) for k in ("psnr", "normal_mae", "absrel")}
+    if full(priors):
+        lines.append(f"| the priors | - | - | {mean(priors, 'normal_mae'):.2f} | {mean(priors, 'absrel'):.4f} | |")
+    emit(a, "--trade" + (f" --plot {a.plot}" if a.plot else ""), lines)
+    if a.plot:
+        plot_trade(a.plot, points, {k: mean(priors, k) for k in ("normal_mae", "absrel")} if full(priors) else None)
+
+
+def plot_trade(path: Path, points: dict, priors: dict | None) -> None:
+    """Mean PSNR against mean normal MAE and AbsRel, one point a run; the priors' geometry as a dashed line."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
+    for (key, label), ax in zip((("normal_mae", "normal MAE (deg)"), ("absrel", "depth AbsRel")), axes):
+        for name, p in points.items():
+            colour = "C3" if name == "`3dgs`" else "C0" if name.startswith("GLINT") else "C7"
+            ax.plot(p[key], p["psnr"], "o", color=colour)
+            ax.annotate(name.split(" (")[0].strip("`"), (p[key], p["psnr"]), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+        if priors is not None:
+            ax.axvline(priors[key], color="k", ls="--", lw=1, label="the priors")
+            ax.legend(fontsize=8)
+        ax.set_xlabel(label + " (lower is better)")
+        ax.set_ylabel("PSNR (dB)")
+    fig.suptitle("40 epochs of 96 x 54, seed 0, mean of 7301-7303: each arm's PSNR against its geometry", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
