@@ -2,7 +2,8 @@
 # The sixty-seventh session's reading of ellipsoids at the bench preset's own size (README, "Ellipsoids at both of
 # the bench preset's resolutions"): GLINT with today's bench preset at 192 x 108, 10 epochs, as the prior sweep's
 # runs are read (w_sfm_depth=0, one Dr.Jit thread, seed 0), on one tuning room, into RUNS/b67_<arm>.
-#   bash docs/results/coarse_to_fine/s67.sh ARM ROOM      (ARM: priors, base, el; ROOM: 7301-7303)
+#   [SEED=K] bash docs/results/coarse_to_fine/s67.sh ARM ROOM      (ARM: priors, base, el; ROOM: 7301-7303)
+# SEED=K: that seed alone (--seed-ids K; run folders METHOD@seedK).
 # priors: the priors row at 192 x 108 (no training; into RUNS/b67_base, beside the base runs, for the floor).
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM. A finished run is skipped.
 set -u
@@ -22,5 +23,5 @@ WT=${WT:?WT: the worktree whose code runs}; RUNS=${RUNS:?RUNS: the runs folder};
 cd "$WT" && export PYTHONPATH=$WT:${WT}_path || exit 1
 echo "=== $(date -u +%FT%TZ) $folder $arm $room"
 $PY -m glint_mi.benchmark --preset bench --set w_sfm_depth=0 --set threads=1 --set eval_every=1000 $switch \
-    --methods $methods --data "${DATA73:-/work/data73}/r$room" --out "$RUNS/$folder"
+    --methods $methods --data "${DATA73:-/work/data73}/r$room" --out "$RUNS/$folder" ${SEED:+--seed-ids $SEED}
 echo "=== rc=$? $(date -u +%FT%TZ)"
