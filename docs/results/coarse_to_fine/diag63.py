@@ -223,7 +223,8 @@ def weights(a) -> None:
                              f"{priors[r]['normal_mae']:.2f} | {priors[r]['absrel']:.4f} |") for r in ROOMS]
     base = curve[1.0]
     lines += ["", "| prior terms' weight | PSNR all / glass / off | against weight 1 | per room | against `3dgs` | "
-              "normals | AbsRel | rooms over the priors (normals, AbsRel) | rooms |", "|---|---|---|---|---|---|---|---|---|"]
+              "normals | AbsRel | rooms over the priors (normals, AbsRel) | rooms |",
+              "|---|---|---|---|---|---|---|---|---|"]
     for w in sorted(curve):
         runs = curve[w]
         done = [r for r in ROOMS if all(x[r] is not None for x in (runs, base, ref))]
@@ -272,8 +273,8 @@ def plot_weights(path: Path, curve: dict, ref: dict, priors: dict) -> None:
 
 # Every arm run on the whole of GLINT (not the ladder's interface alone) on 7301-7303 at seed 0: folder, what it sets.
 TRADE = {"d63_copy": "3DGS's clones", "d63_el": "ellipsoids", "d63_noterms": "no prior term",
-         "d65_half": "prior terms x 0.5", "d65_quarter": "prior terms x 0.25", "d66_agree_n": "normal prior x SfM share",
-         "d66_agree_dn": "prior terms x SfM share", "d64_nocons": "no consistency term",
+         "d65_half": "prior terms x 0.5", "d65_quarter": "prior terms x 0.25",
+         "d66_agree_n": "normal prior x SfM share", "d66_agree_dn": "prior terms x SfM share", "d64_nocons": "no consistency term",
          "d67_freesf": "no geometry term", "d67_free": "no geometry term, ellipsoids"}
 
 
