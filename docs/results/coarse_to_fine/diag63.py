@@ -274,7 +274,8 @@ def plot_weights(path: Path, curve: dict, ref: dict, priors: dict) -> None:
 # Every arm run on the whole of GLINT (not the ladder's interface alone) on 7301-7303 at seed 0: folder, what it sets.
 TRADE = {"d63_copy": "3DGS's clones", "d63_el": "ellipsoids", "d63_noterms": "no prior term",
          "d65_half": "prior terms x 0.5", "d65_quarter": "prior terms x 0.25",
-         "d66_agree_n": "normal prior x SfM share", "d66_agree_dn": "prior terms x SfM share", "d64_nocons": "no consistency term",
+         "d66_agree_n": "normal prior x SfM share", "d66_agree_dn": "prior terms x SfM share",
+         "d64_nocons": "no consistency term",
          "d67_freesf": "no geometry term", "d67_free": "no geometry term, ellipsoids"}
 
 
