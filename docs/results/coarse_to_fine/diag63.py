@@ -71,6 +71,11 @@ def tagged(a) -> str:
     return f" --tag {a.tag}" if a.tag != "d63" else ""
 
 
+def over_priors(runs: dict, priors: dict, rooms, key: str) -> int:
+    """How many of ``rooms`` the run ends over its priors' row in ``key`` (normal_mae, absrel)."""
+    return sum(priors[r] is not None and runs[r][key] > priors[r][key] for r in rooms)
+
+
 def emit(a, flag: str, lines: list[str]) -> None:
     """Print the table and, with --out, write it under the command that made it."""
     text = "\n".join(lines) + "\n"
@@ -232,7 +237,7 @@ def weights(a) -> None:
             lines.append(f"| {w:g} | not run | | | | | | | 0 |")
             continue
         mean = lambda rs, k: sum(rs[r][k] for r in done) / len(done)
-        over = lambda k: sum(priors[r] is not None and runs[r][k] > priors[r][k] for r in done)
+        over = lambda k: over_priors(runs, priors, done, k)
         lines.append(f"| {w:g} | " + " / ".join(f"{mean(runs, k):.2f}" for k in COLS[:3]) + " | "
                      + " / ".join(f"{mean(runs, k) - mean(base, k):+.2f}" for k in COLS[:3]) + " | "
                      + ", ".join(f"{runs[r]['psnr'] - base[r]['psnr']:+.2f}" for r in done) + " | "
@@ -295,7 +300,7 @@ def trade(a) -> None:
         if not full(runs):
             lines.append(f"| {name} | not run on the three rooms | | | | |")
             continue
-        over = lambda k: sum(priors[r] is not None and runs[r][k] > priors[r][k] for r in ROOMS)
+        over = lambda k: over_priors(runs, priors, ROOMS, k)
         lines.append(f"| {name} | " + " / ".join(f"{mean(runs, k):.2f}" for k in COLS[:3]) + " | "
                      + (" / ".join(f"{mean(runs, k) - mean(ref, k):+.2f}" for k in COLS[:3]) if full(ref) else "-")
                      + f" | {mean(runs, 'normal_mae'):.2f} | {mean(runs, 'absrel'):.4f} | "
