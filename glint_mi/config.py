@@ -191,6 +191,11 @@ class LossConfig:
     w_consistency: float = 0.1
     consistency_depth: str = "expected"  # the depth whose normals the consistency term compares: expected (GLINT) or
     #                                      median (2DGS's depth_ratio 1: the distance where T falls to 0.5)
+    consistency_grad: str = "both"       # what the depth-normal consistency moves: both (2DGS, GLINT: the Gaussians'
+    #                                      normals toward the rendered depth's surface and that depth toward the
+    #                                      normals) or normal (the depth's normals detached: the term turns the
+    #                                      normals to the depth's surface and cannot bend the depth toward normals a
+    #                                      bad normal prior set; issue 66, docs/results/coarse_to_fine, 68th session)
     normal_weight: str = "near_consistency"  # per-pixel weight of the normal prior and depth-normal consistency
     #                                      terms: uniform (the supplement's formulas; every baseline's) or near =
     #                                      the release's use_dpt_scale_(gs_)norm_loss: 1 - (D - near) / (far - near)
@@ -531,6 +536,8 @@ class TrainConfig:
              "use expected, median (2DGS) or first_surface (TSGS; needs priors/glass masks)")
         need(self.consistency_depth in ("expected", "median"), "consistency_depth",
              "use expected (GLINT) or median (2DGS)")
+        need(self.consistency_grad in ("both", "normal"), "consistency_grad",
+             "use both (2DGS, GLINT) or normal (the depth's normals detached)")
         need(self.normal_weight in ("uniform", "near", "near_consistency"), "normal_weight",
              "use near_consistency (glint_mi: the release's depth scale on the depth-normal consistency only), "
              "near (the release: on the normal prior too) or uniform (the baselines)")

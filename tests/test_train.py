@@ -358,6 +358,21 @@ def test_patch_losses():
     bad = L.depth_normal_consistency(mi.Point3f(0, 0, 0), D, mi.Float(dist), mi.Vector3f(0, -1, 0),
                                      mi.Bool(True), nb)
     assert float(good[0]) < 1e-5 and float(bad[0]) > 0.9
+    # consistency_grad: normal detaches the depth's normals: same value, the normals' gradient unchanged, none on
+    # the depth (a tilted normal and a bumped depth, so that both sides have a gradient under both)
+    bump = dist * (1.0 + 0.05 * np.sin(np.arange(P * p * p)))
+    grads = {}
+    for grad in ("both", "normal"):
+        dd = mi.Float(bump)
+        n = mi.Vector3f(*[mi.Float(np.full(P * p * p, c)) for c in (0.1, -0.2, -1.0)])  # one per ray (gathered)
+        dr.enable_grad(dd, n)
+        v = L.depth_normal_consistency(mi.Point3f(0, 0, 0), D, dd, dr.normalize(n), mi.Bool(True), nb, grad=grad)
+        dr.backward(v)
+        grads[grad] = (float(v[0]), np.array(dr.grad(dd)), np.array(dr.grad(n)).ravel())
+    (v_b, gd_b, gn_b), (v_n, gd_n, gn_n) = grads["both"], grads["normal"]
+    assert v_n == pytest.approx(v_b, rel=1e-6) and v_b > 1e-3
+    assert np.abs(gd_b).max() > 1e-4 and np.abs(gd_n).max() == 0.0
+    np.testing.assert_allclose(gn_n, gn_b, rtol=1e-5, atol=1e-8)
 
 
 def test_bad_inputs_name_the_problem(room, tmp_path):
