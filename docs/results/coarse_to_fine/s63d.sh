@@ -13,10 +13,12 @@
 # preset, no switch: RUNS/d66_base) for its second seed. SEED=K: that seed alone (--seed-ids K; run folders METHOD@seedK).
 # The sixty-seventh session's free interface (README, "GLINT's glass sets over a free interface"): freesf (no prior
 # term, no consistency term), free (and 3DGS's kernel) (RUNS/d67_<arm>); nocons is the ladder's arm (RUNS/d64_nocons).
+# The sixty-eighth session's one-sided consistency (README, "A consistency term that moves only the normals"): cgrad
+# (RUNS/d68_cgrad).
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
 # (the ladder's RUNS/d64_<arm>).
 set -u
-arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
+arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free cgrad, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
 methods=glint; tag=d63
 case $arm in
   priors) switch=""; methods=priors ;;                              # the renders' check: no training
@@ -36,9 +38,10 @@ case $arm in
   agree_dn) switch="--set prior_weight_ref=10 --set prior_weight_terms=depth,normal"; tag=d66 ;;  # both terms
   freesf) switch="--set w_normal=0 --set w_depth=0 --set w_consistency=0"; tag=d67 ;;  # no geometry term
   free) switch="--set w_normal=0 --set w_depth=0 --set w_consistency=0 --set kernel=ellipsoid"; tag=d67 ;;  # + ellipsoids
+  cgrad) switch="--set consistency_grad=normal"; tag=d68 ;;          # the consistency moves only the normals
   i_el|i_copy|i_photo|i_cons) ;;
   *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface, copyel, i_el, i_copy, i_photo, i_cons, i_3dgs," \
-          "photo, nocons, half, quarter, base, agree_n, agree_dn, freesf or free" >&2
+          "photo, nocons, half, quarter, base, agree_n, agree_dn, freesf, free or cgrad" >&2
      exit 2 ;;
 esac
 case $arm in  # the ladder: each step keeps the ones before it
