@@ -68,8 +68,8 @@ def room_tables(root: Path, ref: float = 10.0) -> tuple[list[str], list[str]]:
                 acc = cut.setdefault((rad, gate), np.zeros(4))
                 acc += ((1 - wp)[bad].sum(), bad.sum(), (1 - wp)[good].sum(), good.sum())
     sfm, true = np.concatenate(sfm), np.concatenate(true)
-    head = [f"{len(sfm)} features; SfM angle mean {sfm.mean():.1f} deg, the prior's true error there {true.mean():.1f}; "
-            f"correlation {np.corrcoef(sfm, true)[0, 1]:.2f}", "",
+    head = [f"{len(sfm)} features; SfM angle mean {sfm.mean():.1f} deg, the prior's true error there "
+            f"{true.mean():.1f}; correlation {np.corrcoef(sfm, true)[0, 1]:.2f}", "",
             "| SfM angle (deg) | features | true error, mean / median | share erring > 30 deg |", "|---|---|---|---|"]
     for lo, hi in BINS:
         m = (sfm >= lo) & (sfm < hi)
@@ -79,7 +79,8 @@ def room_tables(root: Path, ref: float = 10.0) -> tuple[list[str], list[str]]:
     rows = ["| radius (x width) | gate (deg) | weight cut where the prior errs > 30 deg | where it errs < 15 deg |",
             "|---|---|---|---|"]
     for (rad, gate), (cb, nb_, cg, ng) in cut.items():
-        rows.append(f"| {rad:.2f} | {gate if gate is not None else '-'} | {cb / max(nb_, 1):.3f} | {cg / max(ng, 1):.3f} |")
+        rows.append(f"| {rad:.2f} | {gate if gate is not None else '-'} | {cb / max(nb_, 1):.3f} | "
+                    f"{cg / max(ng, 1):.3f} |")
     return head, rows
 
 
