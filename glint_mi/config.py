@@ -181,7 +181,10 @@ class LossConfig:
     #                                      read 14.5 median, 26.4 mean). Not measurable (no normal prior, < 50 planar
     #                                      tracks): full weight, said in the log and report (prior_weight). 0: off
     #                                      (the paper's constant weights). docs/results/coarse_to_fine, 66th session
-    prior_weight_terms: str = "normal"   # which prior terms prior_weight_ref scales: normal | depth,normal | depth
+    prior_weight_terms: str = "normal"   # which terms prior_weight_ref scales, comma-separated: normal, depth, and
+    #                                      consistency = the depth-normal consistency's pull on the depth (its pull
+    #                                      on the normals, and its value, stay; consistency_grad: normal is that
+    #                                      pull at 0). E.g. normal | depth,normal | consistency
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
@@ -195,7 +198,8 @@ class LossConfig:
     #                                      normals toward the rendered depth's surface and that depth toward the
     #                                      normals) or normal (the depth's normals detached: the term turns the
     #                                      normals to the depth's surface and cannot bend the depth toward normals a
-    #                                      bad normal prior set; issue 66, docs/results/coarse_to_fine, 68th session)
+    #                                      bad normal prior set; issue 66, docs/results/coarse_to_fine, 68th session;
+    #                                      prior_weight_terms: consistency scales that pull by the priors' agreement)
     normal_weight: str = "near_consistency"  # per-pixel weight of the normal prior and depth-normal consistency
     #                                      terms: uniform (the supplement's formulas; every baseline's) or near =
     #                                      the release's use_dpt_scale_(gs_)norm_loss: 1 - (D - near) / (far - near)
@@ -582,8 +586,9 @@ class TrainConfig:
              "normal, or set prior_decay_ref=0 to let the depth prior fall too")
         need(math.isfinite(self.prior_weight_ref) and self.prior_weight_ref >= 0, "prior_weight_ref",
              "is an angle in degrees, >= 0 (0: the prior terms keep their weights)")
-        need(self.prior_weight_terms in ("depth,normal", "normal", "depth"), "prior_weight_terms",
-             "use depth,normal, normal or depth")
+        terms = self.prior_weight_terms.split(",")
+        need(len(terms) == len(set(terms)) and set(terms) <= {"depth", "normal", "consistency"}, "prior_weight_terms",
+             "name each of depth, normal and consistency at most once, comma-separated (e.g. normal or depth,normal)")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "secondary_until", "normal_from",
                   "trans_from", "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from",
                   "dist_from", "prior_decay"):

@@ -362,17 +362,22 @@ def test_patch_losses():
     # the depth (a tilted normal and a bumped depth, so that both sides have a gradient under both)
     bump = dist * (1.0 + 0.05 * np.sin(np.arange(P * p * p)))
     grads = {}
-    for grad in ("both", "normal"):
+    for grad, pull in (("both", 1.0), ("normal", 0.0), ("share", 0.25)):
         dd = mi.Float(bump)
         n = mi.Vector3f(*[mi.Float(np.full(P * p * p, c)) for c in (0.1, -0.2, -1.0)])  # one per ray (gathered)
         dr.enable_grad(dd, n)
-        v = L.depth_normal_consistency(mi.Point3f(0, 0, 0), D, dd, dr.normalize(n), mi.Bool(True), nb, grad=grad)
+        v = L.depth_normal_consistency(mi.Point3f(0, 0, 0), D, dd, dr.normalize(n), mi.Bool(True), nb,
+                                       depth_grad=pull)
         dr.backward(v)
         grads[grad] = (float(v[0]), np.array(dr.grad(dd)), np.array(dr.grad(n)).ravel())
     (v_b, gd_b, gn_b), (v_n, gd_n, gn_n) = grads["both"], grads["normal"]
     assert v_n == pytest.approx(v_b, rel=1e-6) and v_b > 1e-3
     assert np.abs(gd_b).max() > 1e-4 and np.abs(gd_n).max() == 0.0
     np.testing.assert_allclose(gn_n, gn_b, rtol=1e-5, atol=1e-8)
+    v_s, gd_s, gn_s = grads["share"]  # prior_weight_terms: consistency - a share of the depth's gradient
+    assert v_s == pytest.approx(v_b, rel=1e-6)
+    np.testing.assert_allclose(gd_s, 0.25 * gd_b, rtol=1e-4, atol=1e-8)
+    np.testing.assert_allclose(gn_s, gn_b, rtol=1e-5, atol=1e-8)
 
 
 def test_bad_inputs_name_the_problem(room, tmp_path):
@@ -1073,6 +1078,10 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     scale, why = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0), {"median_deg": None, "why": "no tracks"})
     assert scale == {} and "no tracks" in why
     assert prior_weight_scale(tiny_cfg(prior_weight_ref=10.0), ag)[1].startswith("the normal prior weighs 0.25 of its")
+    cons = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency"), ag)
+    assert cons[0] == {"consistency": pytest.approx(0.25)} and cons[1].startswith("the depth-normal consistency's pull")
+    with pytest.raises(ConfigError, match="prior_weight_terms"):
+        tiny_cfg(prior_weight_terms="normal,normal").validate()
     with pytest.raises(ConfigError, match="prior_weight_ref"):
         tiny_cfg(prior_weight_ref=float("nan")).validate()
 

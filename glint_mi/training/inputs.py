@@ -122,7 +122,10 @@ def prior_weight_scale(cfg: TrainConfig, agreement: dict | None) -> tuple[dict, 
                     f"measured ({why})")
     f = float(inverse_variance_share(cfg.prior_weight_ref, a))
     terms = cfg.prior_weight_terms.split(",")
-    which = (f"the {' and '.join(terms)} priors weigh {f:.2f} of their weight" if len(terms) > 1 else
-             f"the {terms[0]} prior weighs {f:.2f} of its weight")
+    priors = [t for t in terms if t != "consistency"]
+    names = [f"the {' and '.join(priors)} prior{'s' if len(priors) > 1 else ''}"] if priors else []
+    names += ["the depth-normal consistency's pull on the depth"] if "consistency" in terms else []
+    many = len(priors) > 1 or len(names) > 1
+    which = f"{' and '.join(names)} weigh{'' if many else 's'} {f:.2f} of {'their' if many else 'its'} weight"
     return {t: f for t in terms}, (f"{which}: the normal prior agrees with the SfM points' planes to {a:.1f} deg on "
                                    f"the mean, prior_weight_ref {cfg.prior_weight_ref:g} deg")

@@ -194,14 +194,19 @@ def near_weight(depth, valid, p: float = 0.01):
     return dr.select(ok, dr.clip(w, 0.0, 1.0), 0.0)
 
 
-def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None, grad: str = "both"):
+def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None, depth_grad: float = 1.0):
     """2DGS normal consistency on patches: 1 - <n, n_depth>, n_depth from the cross product of the 3D points of
     a pixel and its right and lower neighbours (oriented to face the camera). ``nb`` = patch_neighbours(...).
     ``weight`` (detached, per ray; e.g. :func:`near_weight`) scales each pixel's term; the mean still divides by the
-    number of pixels where the term is defined. ``grad``: ``both`` differentiates n and n_depth (2DGS), ``normal``
-    detaches n_depth, so that the term moves only the normals (the value is the same)."""
+    number of pixels where the term is defined. ``depth_grad`` scales the gradient that reaches the depth (its pull
+    toward the normals): 1 differentiates n and n_depth alike (2DGS), 0 detaches n_depth, so that the term moves only
+    the normals; the value is the same."""
     i, r, b = (mi.UInt32(x) for x in nb)
-    pts = origin + d * (dr.detach(dist) if grad == "normal" else dist)
+    if depth_grad <= 0.0:
+        dist = dr.detach(dist)
+    elif depth_grad < 1.0:  # the value of dist, a share of its gradient
+        dist = depth_grad * dist + (1.0 - depth_grad) * dr.detach(dist)
+    pts = origin + d * dist
     P0, Pr, Pb = (take(pts, k) for k in (i, r, b))
     n_d = dr.cross(Pr - P0, Pb - P0)
     n_d = dr.normalize(n_d)

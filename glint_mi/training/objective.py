@@ -103,13 +103,15 @@ def _consistency(x):
         dist = x.leaves["median"] = L._leaf(x.out["median"])
     else:
         dist = x.depth / dr.dot(x.ray.d, x.fwd)
+    # its pull on the depth: none (consistency_grad: normal), else the share prior_weight_ref gives it (1: the paper)
+    pull = 0.0 if c.consistency_grad == "normal" else x.st.get("prior_weight", {}).get("consistency", 1.0)
     value = c.w_consistency * L.depth_normal_consistency(x.ray.o, x.ray.d, dist, x.normal, x.A > 0.5, x.nb, x.w_near,
-                                                         c.consistency_grad)
+                                                         pull)
     if x.traced_t and x.st["direct"]:
         _, Dd, Dn, DA = x.trans
         w_t_near = L.near_weight(Dd, dr.detach(DA) > 0.5) if x.near_c else None
         value = value + c.w_consistency * L.depth_normal_consistency(
-            x.ray.o, x.ray.d, Dd / dr.dot(x.ray.d, x.fwd), Dn, dr.detach(DA) > 0.5, x.nb, w_t_near, c.consistency_grad)
+            x.ray.o, x.ray.d, Dd / dr.dot(x.ray.d, x.fwd), Dn, dr.detach(DA) > 0.5, x.nb, w_t_near, pull)
     return value
 
 
