@@ -223,21 +223,16 @@ class RayBank:
         n_cv = self.priors["normal"][self.offsets[i]:self.offsets[i + 1]].reshape(h, w, 3).astype(np.float64)
         return n_cv @ self.axes[i].astype(np.float64).T
 
-    def normal_prior_sfm_agreement(self, observations: dict | None, points: np.ndarray | None, k: int = 12,
-                                   planarity: float = 0.05, min_observations: int = 50) -> dict:
-        """How far the normal prior is from the surfaces the SfM points describe, measured without ground truth: at
-        each tracked feature whose ``k`` nearest SfM points lie on a plane (smallest over middle eigenvalue of their
-        covariance < ``planarity``), the angle between that plane's normal and the prior's normal at the feature's
-        pixel (unoriented, world space). Returns the median angle (deg; None with fewer than ``min_observations``
-        such features, and why) and the counts. On the tuning rooms it follows the prior model's error scale (7301:
-        8.0, 11.1, 14.5, 28.2 deg at 0.5, 0.75, 1, 2; docs/results/prior_sweep)."""
+    def normal_prior_sfm_angles(self, observations: dict | None, points: np.ndarray | None, k: int = 12,
+                                planarity: float = 0.05) -> dict[int, tuple]:
+        """Per view index: (rows [n], cols [n], angles [n] deg) of its tracked features whose ``k`` nearest SfM points
+        lie on a plane (smallest over middle eigenvalue of their covariance < ``planarity``) and whose pixel has a
+        normal prior: the angle between that plane's normal and the prior's (unoriented, world space). Empty without
+        a normal prior, SfM points (>= ``k``) or tracks."""
         from scipy.spatial import cKDTree
 
-        out = {"observations": 0, "median_deg": None}
-        if self.priors.get("normal") is None:
-            return {**out, "why": "no normal prior"}
-        if points is None or len(points) < k or not observations:
-            return {**out, "why": "no SfM points and tracks"}
+        if self.priors.get("normal") is None or points is None or len(points) < k or not observations:
+            return {}
         pts = np.asarray(points, np.float64)
         tree = cKDTree(pts)
         _, idx = tree.query(pts, k)  # each point's plane, once (a point is tracked in many views)
@@ -245,13 +240,28 @@ class RayBank:
         lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
         flat = lam[:, 0] < planarity * np.maximum(lam[:, 1], 1e-300)
         plane = vec[:, :, 0]
-        angles = []
+        out = {}
         for i, (row, col, _, xyz) in self.observation_pixels(observations, points=True).items():
             _, j = tree.query(xyz)  # the tracked feature's own 3D point
             n_prior = self.prior_normals_world(i)[row, col]
             ok = flat[j] & (np.linalg.norm(n_prior, axis=1) > 0.5)
             cos = np.abs(np.einsum("ni,ni->n", plane[j[ok]], n_prior[ok])) / np.linalg.norm(n_prior[ok], axis=1)
-            angles.append(np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
+            out[i] = (row[ok], col[ok], np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
+        return out
+
+    def normal_prior_sfm_agreement(self, observations: dict | None, points: np.ndarray | None, k: int = 12,
+                                   planarity: float = 0.05, min_observations: int = 50) -> dict:
+        """How far the normal prior is from the surfaces the SfM points describe, measured without ground truth: the
+        angles of :meth:`normal_prior_sfm_angles` over every view. Returns their median and mean (deg; None with
+        fewer than ``min_observations`` such features, and why) and the counts. On the tuning rooms the median
+        follows the prior model's error scale (7301: 8.0, 11.1, 14.5, 28.2 deg at 0.5, 0.75, 1, 2;
+        docs/results/prior_sweep)."""
+        out = {"observations": 0, "median_deg": None}
+        if self.priors.get("normal") is None:
+            return {**out, "why": "no normal prior"}
+        if points is None or len(points) < k or not observations:
+            return {**out, "why": "no SfM points and tracks"}
+        angles = [a for _, _, a in self.normal_prior_sfm_angles(observations, points, k, planarity).values()]
         a = np.concatenate(angles) if angles else np.zeros(0)
         out["observations"] = int(len(a))
         if len(a) < min_observations:

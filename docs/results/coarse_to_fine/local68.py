@@ -1,9 +1,10 @@
 """The sixty-eighth session's look at a per-pixel normal-prior weight (README, "A consistency term that moves only the
 normals"): can the SfM points say WHERE the normal prior errs, not only how much on the mean?
 
-At each tracked feature on a planar SfM neighbourhood (RayBank.normal_prior_sfm_agreement's features: 12 nearest
-points, planarity 0.05) the angle between its plane and the prior's normal at its pixel is set beside the prior's true
-error there (ground truth read to score the idea, never by training). Then each pixel takes its nearest feature's
+At each tracked feature on a planar SfM neighbourhood (RayBank.normal_prior_sfm_angles, the angles
+normal_prior_sfm_agreement summarises: 12 nearest points, planarity 0.05) the angle between its plane and the prior's
+normal at its pixel is set beside the prior's true error there (ground truth read to score the idea, never by
+training). Then each pixel takes its nearest feature's
 inverse-variance weight min(1, (10 / angle)^2) within a radius (x image width), optionally only where its prior normal
 is within GATE deg of the feature pixel's; the table gives the share of the weight cut on the pixels whose prior errs
 by > 30 deg and on those where it errs by < 15 deg. A weight that localises the error cuts the first far more.
@@ -22,31 +23,22 @@ GATES = (None, 10, 20)
 
 def room_tables(root: Path, ref: float = 10.0) -> tuple[list[str], list[str]]:
     from scipy.ndimage import distance_transform_edt
-    from scipy.spatial import cKDTree
 
     from glint_mi.data import load_dataset
     from glint_mi.training.batch import RayBank
 
     ds = load_dataset(root, downscale=2)  # the 40-epoch runs' 96 x 54
     bank = RayBank(ds.train_views, ds.root, use_priors=True)
-    pts = np.asarray(ds.points, np.float64)
-    tree = cKDTree(pts)
-    _, idx = tree.query(pts, 12)
-    nb = pts[idx] - pts[idx].mean(1, keepdims=True)
-    lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
-    flat, plane = lam[:, 0] < 0.05 * lam[:, 1], vec[:, :, 0]
     sfm, true, cut = [], [], {}
-    for i, (row, col, _, xyz) in bank.observation_pixels(ds.observations(), points=True).items():
+    for i, (row, col, ang) in bank.normal_prior_sfm_angles(ds.observations(), ds.points).items():
         gt = bank.views[i].load_gt()
         npw = bank.prior_normals_world(i)
         h, w = npw.shape[:2]
         valid = (np.linalg.norm(npw, axis=-1) > 0.5) & (gt["depth"] > 0)
         nn = npw / np.maximum(np.linalg.norm(npw, axis=-1, keepdims=True), 1e-12)
         err = np.degrees(np.arccos(np.clip(np.abs((nn * gt["normal"]).sum(-1)), 0, 1)))
-        _, j = tree.query(xyz)
-        ok = flat[j] & valid[row, col]
-        r, c = row[ok], col[ok]
-        a = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ni,ni->n", plane[j[ok]], nn[r, c])), 0, 1)))
+        ok = valid[row, col]  # where the ground truth scores the feature
+        r, c, a = row[ok], col[ok], ang[ok]
         sfm.append(a)
         true.append(err[r, c])
         if not ok.any():
