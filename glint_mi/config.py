@@ -589,6 +589,9 @@ class TrainConfig:
         terms = self.prior_weight_terms.split(",")
         need(len(terms) == len(set(terms)) and set(terms) <= {"depth", "normal", "consistency"}, "prior_weight_terms",
              "name each of depth, normal and consistency at most once, comma-separated (e.g. normal or depth,normal)")
+        need(not (self.consistency_grad == "normal" and self.prior_weight_ref > 0 and "consistency" in terms),
+             "prior_weight_terms", "names consistency, whose pull on the depth consistency_grad: normal already sets "
+             "to 0: drop consistency from prior_weight_terms, or set consistency_grad=both to scale the pull")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "secondary_until", "normal_from",
                   "trans_from", "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from",
                   "dist_from", "prior_decay"):

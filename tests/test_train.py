@@ -1082,6 +1082,8 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     assert cons[0] == {"consistency": pytest.approx(0.25)} and cons[1].startswith("the depth-normal consistency's pull")
     with pytest.raises(ConfigError, match="prior_weight_terms"):
         tiny_cfg(prior_weight_terms="normal,normal").validate()
+    with pytest.raises(ConfigError, match="consistency_grad"):  # two settings for one pull: refused, not overridden
+        tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency", consistency_grad="normal").validate()
     with pytest.raises(ConfigError, match="prior_weight_ref"):
         tiny_cfg(prior_weight_ref=float("nan")).validate()
 

@@ -200,7 +200,7 @@ def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None, de
     ``weight`` (detached, per ray; e.g. :func:`near_weight`) scales each pixel's term; the mean still divides by the
     number of pixels where the term is defined. ``depth_grad`` scales the gradient that reaches the depth (its pull
     toward the normals): 1 differentiates n and n_depth alike (2DGS), 0 detaches n_depth, so that the term moves only
-    the normals; the value is the same."""
+    the normals; the value is the same (between 0 and 1, to float rounding)."""
     i, r, b = (mi.UInt32(x) for x in nb)
     if depth_grad <= 0.0:
         dist = dr.detach(dist)
