@@ -1,0 +1,25 @@
+#!/bin/bash
+# The sixty-ninth session's readings of `cpull` (README, "`cpull`'s last readings: the prior sweep and a second seed on
+# the check rooms"): one lane of one Dr.Jit thread, each job in turn until the cut-off (UTC); a run not finished by it
+# is stopped and said. A finished run is skipped (the benchmark resumes).
+#   bash docs/results/coarse_to_fine/s69.sh CUTOFF JOB...
+# JOB is c:ARM:ROOM:SEED (s63d.sh ARM ROOM at that seed: cpull, or base, today's preset) or s:ROOM:LEVEL (the prior
+# sweep's room-level by prior_sweep/errors55.sh with cpull's switch, folder RUNS/p69_LEVEL_ROOM).
+# Code of the worktree WT (pinned at the declaring commit), RUNS, DATA73 (with levels_ROOM beside the rooms), DATA98.
+set -u
+cut=${1:?a cut-off, e.g. 22:10}; shift
+here=$(cd "$(dirname "$0")" && pwd)
+export WT=${WT:-/work/wt69} RUNS=${RUNS:-/work/runs69} PY=${PY:-/work/main/.venv/bin/python}
+export DATA73=${DATA73:-/work/data73} DATA98=${DATA98:-/work/data98_r}
+for job in "$@"; do
+  left=$(( $(date -ud "$cut" +%s) - $(date -u +%s) ))
+  if [ $left -le 60 ]; then echo "=== $job not run: past the cut-off $cut"; continue; fi
+  IFS=: read kind a b c <<< "$job"
+  case $kind in
+    c) SEED=$c timeout $left bash "$here/s63d.sh" $a $b ;;
+    s) TAG=p69 DATA=$DATA73 SETS="--set prior_weight_ref=10 --set prior_weight_terms=consistency" \
+         timeout $left bash "$here/../prior_sweep/errors55.sh" $a $b ;;
+    *) echo "job '$job': c:ARM:ROOM:SEED or s:ROOM:LEVEL" >&2; continue ;;
+  esac
+  [ $? -eq 124 ] && echo "=== $job stopped at the cut-off $cut"
+done
