@@ -7,7 +7,7 @@ tuning room and as the mean; the share of the base's gap to `3dgs` each arm clos
     python docs/results/coarse_to_fine/diag63.py RUNS --ladder i_el,i_copy,i_photo,i_cons [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --check-arm el [--tag d63] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --weights [--plot PNG] [--out FILE]
-    python docs/results/coarse_to_fine/diag63.py RUNS --seeds agree_n --tag d66 [--out FILE]
+    python docs/results/coarse_to_fine/diag63.py RUNS --seeds agree_n --tag d66 [--check-rooms] [--out FILE]
     python docs/results/coarse_to_fine/diag63.py RUNS --trade [--plot PNG] [--out FILE]
 
 RUNS holds the arms' folders d63_<arm>/ (--tag: another session's prefix; the benchmark's output, or groups/ here,
@@ -18,7 +18,8 @@ share of the interface's gap to `3dgs`; the last row, the step from the ladder's
 on 9801-9803, an arm (RUNS/d63_<arm>) against GLINT at today's preset and `3dgs` there. --weights: the sixty-fifth
 session's curve of the prior terms' weight (0: RUNS/d63_noterms, 0.25: RUNS/d65_quarter, 0.5: RUNS/d65_half, 1: the
 base) per tuning room, against the base, `3dgs` and the priors (RUNS/d63_priors); --plot draws it. --seeds ARM: the
-sixty-sixth session's second seed, an arm beside the base and `3dgs` at seeds 0 and 1. --trade: every arm run on the
+sixty-sixth session's second seed, an arm beside the base and `3dgs` at seeds 0 and 1 (--check-rooms: on 9801-9803,
+the sixty-ninth session's). --trade: every arm run on the
 whole of GLINT at seed 0 on the three tuning rooms (TRADE), its mean PSNR against its mean normals and AbsRel, beside
 `3dgs` and the priors; --plot draws it."""
 import argparse
@@ -97,6 +98,8 @@ def main() -> None:
     ap.add_argument("--weights", action="store_true", help="the prior terms' weight curve on the tuning rooms")
     ap.add_argument("--seeds", help="an arm (RUNS/<tag>_<arm>) at seeds 0 and 1 beside the base (seed 1: "
                     "RUNS/d66_base) and `3dgs` (seed 1: RUNS/d63_3dgs), each seed and their mean")
+    ap.add_argument("--check-rooms", action="store_true", help="with --seeds: on 9801-9803 (seed 0 of the base: "
+                    "groups/t61_min27; of `3dgs`: RUNS/d63_3dgs)")
     ap.add_argument("--trade", action="store_true", help="every whole-GLINT arm's PSNR against its geometry")
     ap.add_argument("--plot", type=Path, help="with --weights or --trade: draw it into this PNG")
     a = ap.parse_args()
@@ -186,32 +189,35 @@ def check_arm(a) -> None:
 def seeds(a) -> None:
     """The sixty-sixth session's second seed: GLINT at today's preset, an arm and `3dgs` at seeds 0 and 1 on the
     tuning rooms; each seed's change of the arm over the base and of GLINT against `3dgs`, and their mean."""
-    rows = {"GLINT, today's preset": ({r: read(BASE[r], r, "glint") for r in ROOMS},
-                                      {r: read(a.runs / "d66_base", r, "glint@seed1") for r in ROOMS}),
-            f"`{a.seeds}`": ({r: read(a.runs / f"{a.tag}_{a.seeds}", r, "glint") for r in ROOMS},
-                             {r: read(a.runs / f"{a.tag}_{a.seeds}", r, "glint@seed1") for r in ROOMS}),
-            "`3dgs`": ({r: read(REF, r, "3dgs") for r in ROOMS},
-                       {r: read(a.runs / "d63_3dgs", r, "3dgs@seed1") for r in ROOMS})}
-    lines = per_room(ROOMS, {f"{name}, seed {k}": runs[k] for name, runs in rows.items() for k in (0, 1)})
+    check = a.check_rooms
+    rooms_ = CHECK_ROOMS if check else ROOMS
+    base0 = {r: read(HERE / "groups/t61_min27" if check else BASE[r], r, "glint") for r in rooms_}
+    ref0 = {r: read(a.runs / "d63_3dgs" if check else REF, r, "3dgs") for r in rooms_}
+    rows = {"GLINT, today's preset": (base0, {r: read(a.runs / "d66_base", r, "glint@seed1") for r in rooms_}),
+            f"`{a.seeds}`": ({r: read(a.runs / f"{a.tag}_{a.seeds}", r, "glint") for r in rooms_},
+                             {r: read(a.runs / f"{a.tag}_{a.seeds}", r, "glint@seed1") for r in rooms_}),
+            "`3dgs`": (ref0, {r: read(a.runs / "d63_3dgs", r, "3dgs@seed1") for r in rooms_})}
+    lines = per_room(rooms_, {f"{name}, seed {k}": runs[k] for name, runs in rows.items() for k in (0, 1)})
     base, arm, ref = rows.values()
     lines += ["", "| room | seed | `3dgs` over GLINT (PSNR all / glass / off) | the arm over GLINT | the arm's normals "
               "against GLINT's | its AbsRel against GLINT's |", "|---|---|---|---|---|---|"]
     diff = lambda x, y, k: x[k] - y[k]
-    for room in ROOMS + ("mean",):
+    for room in rooms_ + ("mean",):
         for k in (0, 1, "both"):
             seeds_ = (0, 1) if k == "both" else (k,)
-            rooms = ROOMS if room == "mean" else (room,)
+            rooms = rooms_ if room == "mean" else (room,)
             pairs = [(s, r) for s in seeds_ for r in rooms]
-            if any(x[s][r] is None for s, r in pairs for x in (base, arm, ref)):
+            if any(x[s][r] is None for s, r in pairs for x in (base, arm)):
                 lines.append(f"| {room} | {k} | not run | | | |")
                 continue
             mean = lambda f: sum(f(s, r) for s, r in pairs) / len(pairs)
-            gap = " / ".join(f"{mean(lambda s, r: diff(ref[s][r], base[s][r], c)):+.2f}" for c in COLS[:3])
+            gap = ("not run" if any(ref[s][r] is None for s, r in pairs) else  # `3dgs` has no run at that seed
+                   " / ".join(f"{mean(lambda s, r: diff(ref[s][r], base[s][r], c)):+.2f}" for c in COLS[:3]))
             gain = " / ".join(f"{mean(lambda s, r: diff(arm[s][r], base[s][r], c)):+.2f}" for c in COLS[:3])
             dn = mean(lambda s, r: diff(arm[s][r], base[s][r], "normal_mae"))
             da = mean(lambda s, r: diff(arm[s][r], base[s][r], "absrel") / base[s][r]["absrel"])
             lines.append(f"| {room} | {k} | {gap} | {gain} | {dn:+.2f} deg | {da:+.1%} |")
-    emit(a, f"--seeds {a.seeds}" + tagged(a), lines)
+    emit(a, f"--seeds {a.seeds}" + tagged(a) + (" --check-rooms" if check else ""), lines)
 
 
 WEIGHTS = {0.0: "d63_noterms", 0.25: "d65_quarter", 0.5: "d65_half"}  # 1.0: the base
