@@ -184,7 +184,10 @@ class LossConfig:
     prior_weight_terms: str = "normal"   # which terms prior_weight_ref scales, comma-separated: normal, depth, and
     #                                      consistency = the depth-normal consistency's pull on the depth (its pull
     #                                      on the normals, and its value, stay; consistency_grad: normal is that
-    #                                      pull at 0). E.g. normal | depth,normal | consistency
+    #                                      pull at 0). E.g. normal | depth,normal | consistency. consistency at
+    #                                      ref 10 gained 0.39 dB on 7301-7303, 0.08 on 9801-9803, but cut the pull
+    #                                      where the photos had corrected a 30-deg prior and lost glass there (t IoU
+    #                                      0.59 -> 0.36): not a default (coarse_to_fine, prior_sweep/errors69_cpull.md)
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
