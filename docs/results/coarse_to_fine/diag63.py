@@ -188,7 +188,8 @@ def check_arm(a) -> None:
 
 def seeds(a) -> None:
     """The sixty-sixth session's second seed: GLINT at today's preset, an arm and `3dgs` at seeds 0 and 1 on the
-    tuning rooms; each seed's change of the arm over the base and of GLINT against `3dgs`, and their mean."""
+    tuning rooms (--check-rooms: on 9801-9803, where `3dgs` has seed 0 alone); each seed's change of the arm over
+    the base and of GLINT against `3dgs` (said not run where `3dgs` has no run), and their mean."""
     check = a.check_rooms
     rooms_ = CHECK_ROOMS if check else ROOMS
     base0 = {r: read(HERE / "groups/t61_min27" if check else BASE[r], r, "glint") for r in rooms_}
