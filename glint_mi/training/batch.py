@@ -46,6 +46,20 @@ def inverse_variance_share(ref, err):
     return np.minimum(1.0, (ref / np.maximum(err, 1e-9)) ** 2)
 
 
+def sfm_planes(points: np.ndarray, k: int = 12, planarity: float = 0.05):
+    """The plane through each SfM point's ``k`` nearest points (itself among them): (a KD-tree of the points, [N] bool
+    where they lie on a plane - smallest over middle eigenvalue of their covariance < ``planarity`` - and [N, 3] the
+    planes' unit normals, unoriented). A point is tracked in many views, so each plane is fitted once."""
+    from scipy.spatial import cKDTree
+
+    pts = np.asarray(points, np.float64)
+    tree = cKDTree(pts)
+    _, idx = tree.query(pts, k)
+    nb = pts[idx] - pts[idx].mean(1, keepdims=True)
+    lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
+    return tree, lam[:, 0] < planarity * np.maximum(lam[:, 1], 1e-300), vec[:, :, 0]
+
+
 class RayBank:
     def __init__(self, views: list[View], root, use_priors: bool = True, glass_masks: str = "depth_gap"):
         """Photos, priors and rays of ``views`` at their own resolution (a dataset loaded with ``downscale`` k
@@ -229,17 +243,9 @@ class RayBank:
         lie on a plane (smallest over middle eigenvalue of their covariance < ``planarity``) and whose pixel has a
         normal prior: the angle between that plane's normal and the prior's (unoriented, world space). Empty without
         a normal prior, SfM points (>= ``k``) or tracks."""
-        from scipy.spatial import cKDTree
-
         if self.priors.get("normal") is None or points is None or len(points) < k or not observations:
             return {}
-        pts = np.asarray(points, np.float64)
-        tree = cKDTree(pts)
-        _, idx = tree.query(pts, k)  # each point's plane, once (a point is tracked in many views)
-        nb = pts[idx] - pts[idx].mean(1, keepdims=True)
-        lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
-        flat = lam[:, 0] < planarity * np.maximum(lam[:, 1], 1e-300)
-        plane = vec[:, :, 0]
+        tree, flat, plane = sfm_planes(points, k, planarity)
         out = {}
         for i, (row, col, _, xyz) in self.observation_pixels(observations, points=True).items():
             _, j = tree.query(xyz)  # the tracked feature's own 3D point

@@ -2,10 +2,11 @@
 part of the normal prior's error that repeats across views tell the rooms where cutting the consistency's pull
 helped (7303, 9803) from those where it hurt (7301 and 7302 at x2)? Measured without ground truth.
 
-At each SfM point on a planar neighbourhood (12 nearest points, planarity 0.05, as RayBank.normal_prior_sfm_angles)
-tracked in >= 3 training views, with a normal prior at its pixel in each: the mean over those views of the angle
-between the prior's normal and the plane (the per-view error), and the angle between the views' mean normal and the
-plane (the error that repeats in every view: an error drawn independently per view averages out of it).
+At each SfM point on a planar neighbourhood (12 nearest points, planarity 0.05: training.batch.sfm_planes, the
+planes of RayBank.normal_prior_sfm_angles) tracked in >= 3 training views, with a normal prior at its pixel in each:
+the mean over those views of the angle between the prior's normal and the plane (the per-view error), and the angle
+between the views' mean normal and the plane (the error that repeats in every view: an error drawn independently
+per view averages out of it).
 
     python docs/results/coarse_to_fine/consist69.py [--data73 /work/data73] [--data98 /work/data98_r] \\
         [--out consist69.md]
@@ -34,20 +35,12 @@ ROOMS = (("7301 x1", "73:r7301/scene_7301", "helped at share 0.41 (+0.37 dB, two
 
 def angles(root: Path, k: int = 12, planarity: float = 0.05, min_views: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Per SfM point tracked in >= min_views views: (mean per-view angle, angle of the views' mean normal), deg."""
-    from scipy.spatial import cKDTree
-
     from glint_mi.data import load_dataset
-    from glint_mi.training.batch import RayBank
+    from glint_mi.training.batch import RayBank, sfm_planes
 
     ds = load_dataset(root, downscale=2)  # the 40-epoch runs' 96 x 54
     bank = RayBank(ds.train_views, ds.root, use_priors=True)
-    pts = np.asarray(ds.points, np.float64)
-    tree = cKDTree(pts)
-    _, idx = tree.query(pts, k)
-    nb = pts[idx] - pts[idx].mean(1, keepdims=True)
-    lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
-    flat = lam[:, 0] < planarity * np.maximum(lam[:, 1], 1e-300)
-    plane = vec[:, :, 0]
+    tree, flat, plane = sfm_planes(ds.points, k, planarity)  # the planes normal_prior_sfm_angles measures against
     seen: dict[int, list] = {}
     for i, (row, col, _, xyz) in bank.observation_pixels(ds.observations(), points=True).items():
         _, j = tree.query(xyz)
