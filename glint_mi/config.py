@@ -188,6 +188,11 @@ class LossConfig:
     #                                      ref 10 gained 0.39 dB on 7301-7303, 0.08 on 9801-9803, but cut the pull
     #                                      where the photos had corrected a 30-deg prior and lost glass there (t IoU
     #                                      0.59 -> 0.36): not a default (coarse_to_fine, prior_sweep/errors69_cpull.md)
+    prior_weight_where: str = "all"      # where prior_weight_terms: consistency cuts the pull to its share s: all
+    #                                      (every pixel) or off_glass: per ray s + (1 - s) g, g = max(the interface's
+    #                                      rendered transparency (detached), 1 where the SfM see-through cue says
+    #                                      seen through), so the glass keeps the whole pull (the cut's gain on 7303 was
+    #                                      off the glass, its losses at 30-deg priors on it). Issue 66, 70th session
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
@@ -595,6 +600,12 @@ class TrainConfig:
         need(not (self.consistency_grad == "normal" and self.prior_weight_ref > 0 and "consistency" in terms),
              "prior_weight_terms", "names consistency, whose pull on the depth consistency_grad: normal already sets "
              "to 0: drop consistency from prior_weight_terms, or set consistency_grad=both to scale the pull")
+        need(self.prior_weight_where in ("all", "off_glass"), "prior_weight_where",
+             f"is {self.prior_weight_where!r}: use all or off_glass")
+        need(self.prior_weight_where == "all" or ("consistency" in terms and self.prior_weight_ref > 0),
+             "prior_weight_where",
+             "is off_glass, which places the consistency's pull only: add consistency to prior_weight_terms "
+             "(and prior_weight_ref > 0), or set prior_weight_where=all")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "secondary_until", "normal_from",
                   "trans_from", "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from",
                   "dist_from", "prior_decay"):

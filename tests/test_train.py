@@ -378,6 +378,23 @@ def test_patch_losses():
     assert v_s == pytest.approx(v_b, rel=1e-6)
     np.testing.assert_allclose(gd_s, 0.25 * gd_b, rtol=1e-4, atol=1e-8)
     np.testing.assert_allclose(gn_s, gn_b, rtol=1e-5, atol=1e-8)
+    # prior_weight_where: off_glass - per ray, the share off the glass and the whole pull on it: the depth's gradient
+    # is that share of the whole one ray by ray (t 0 / 0.5 / 1 and the cue's seen-through rays), the normals' unchanged
+    M = P * p * p
+    t = np.tile([0.0, 0.5, 1.0, 0.0], M // 4)
+    cue = np.where(np.arange(M) % 8 == 3, 1, np.where(np.arange(M) % 8 == 7, -1, 0)).astype(np.float32)
+    g = L.glass_pull(0.25, mi.Float(t), mi.Float(cue))
+    want = 0.25 + 0.75 * np.maximum(t, cue > 0)
+    np.testing.assert_allclose(np.array(g), want, rtol=1e-6)
+    assert L.glass_pull(1.0, mi.Float(t), None) == 1.0  # no cut: the scalar path, kernels as before
+    dd = mi.Float(bump)
+    n = mi.Vector3f(*[mi.Float(np.full(M, c)) for c in (0.1, -0.2, -1.0)])
+    dr.enable_grad(dd, n)
+    v_g = L.depth_normal_consistency(mi.Point3f(0, 0, 0), D, dd, dr.normalize(n), mi.Bool(True), nb, depth_grad=g)
+    dr.backward(v_g)
+    assert float(v_g[0]) == pytest.approx(v_b, rel=1e-6)
+    np.testing.assert_allclose(np.array(dr.grad(dd)), want * gd_b, rtol=1e-4, atol=1e-8)
+    np.testing.assert_allclose(np.array(dr.grad(n)).ravel(), gn_b, rtol=1e-5, atol=1e-8)
 
 
 def test_bad_inputs_name_the_problem(room, tmp_path):
@@ -1080,10 +1097,20 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     assert prior_weight_scale(tiny_cfg(prior_weight_ref=10.0), ag)[1].startswith("the normal prior weighs 0.25 of its")
     cons = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency"), ag)
     assert cons[0] == {"consistency": pytest.approx(0.25)} and cons[1].startswith("the depth-normal consistency's pull")
+    where = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency",
+                                        prior_weight_where="off_glass"), ag)[1]
+    assert "pull on the depth off the glass (prior_weight_where: off_glass) weighs 0.25" in where
     with pytest.raises(ConfigError, match="prior_weight_terms"):
         tiny_cfg(prior_weight_terms="normal,normal").validate()
     with pytest.raises(ConfigError, match="consistency_grad"):  # two settings for one pull: refused, not overridden
         tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency", consistency_grad="normal").validate()
+    with pytest.raises(ConfigError, match="prior_weight_where.*add consistency"):  # a setting that would do nothing
+        tiny_cfg(prior_weight_ref=10.0, prior_weight_where="off_glass").validate()
+    with pytest.raises(ConfigError, match="prior_weight_where.*add consistency"):
+        tiny_cfg(prior_weight_terms="consistency", prior_weight_where="off_glass").validate()
+    with pytest.raises(ConfigError, match="prior_weight_where"):
+        tiny_cfg(prior_weight_where="glass").validate()
+    tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency", prior_weight_where="off_glass").validate()
     with pytest.raises(ConfigError, match="prior_weight_ref"):
         tiny_cfg(prior_weight_ref=float("nan")).validate()
 

@@ -124,7 +124,8 @@ def prior_weight_scale(cfg: TrainConfig, agreement: dict | None) -> tuple[dict, 
     terms = cfg.prior_weight_terms.split(",")
     priors = [t for t in terms if t != "consistency"]
     names = [f"the {' and '.join(priors)} prior{'s' if len(priors) > 1 else ''}"] if priors else []
-    names += ["the depth-normal consistency's pull on the depth"] if "consistency" in terms else []
+    where = " off the glass (prior_weight_where: off_glass)" if cfg.prior_weight_where == "off_glass" else ""
+    names += [f"the depth-normal consistency's pull on the depth{where}"] if "consistency" in terms else []
     many = len(priors) > 1 or len(names) > 1
     which = f"{' and '.join(names)} weigh{'' if many else 's'} {f:.2f} of {'their' if many else 'its'} weight"
     return {t: f for t in terms}, (f"{which}: the normal prior agrees with the SfM points' planes to {a:.1f} deg on "

@@ -200,9 +200,13 @@ def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None, de
     ``weight`` (detached, per ray; e.g. :func:`near_weight`) scales each pixel's term; the mean still divides by the
     number of pixels where the term is defined. ``depth_grad`` scales the gradient that reaches the depth (its pull
     toward the normals): 1 differentiates n and n_depth alike (2DGS), 0 detaches n_depth, so that the term moves only
-    the normals; the value is the same (between 0 and 1, to float rounding)."""
+    the normals; the value is the same (between 0 and 1, to float rounding). A Float (detached, per ray) scales each
+    ray's depth by its own share (:func:`glass_pull`)."""
     i, r, b = (mi.UInt32(x) for x in nb)
-    if depth_grad <= 0.0:
+    if isinstance(depth_grad, dr.ArrayBase):
+        g = dr.detach(mi.Float(depth_grad))
+        dist = g * dist + (1.0 - g) * dr.detach(dist)
+    elif depth_grad <= 0.0:
         dist = dr.detach(dist)
     elif depth_grad < 1.0:  # the value of dist, a share of its gradient
         dist = depth_grad * dist + (1.0 - depth_grad) * dr.detach(dist)
@@ -219,6 +223,18 @@ def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None, de
     if weight is not None:
         term = term * take(dr.detach(mi.Float(weight)), i)
     return dr.sum(term) / dr.maximum(dr.count(ok), 1)
+
+
+def glass_pull(share: float, t, cue=None):
+    """``prior_weight_where: off_glass``: the consistency's pull on the depth per ray, share + (1 - share) g, with
+    g = max(clip(t, 0, 1), 1 where the SfM see-through ``cue`` > 0): the whole pull on the glass (the rendered
+    transparency ``t`` or the cue says seen through), the share elsewhere. Detached; a share >= 1 stays 1.0."""
+    if share >= 1.0:
+        return 1.0
+    g = dr.clip(dr.detach(mi.Float(t)), 0.0, 1.0)
+    if cue is not None:
+        g = dr.select(mi.Float(cue) > 0, 1.0, g)
+    return share + (1.0 - share) * g
 
 
 def transparency_regulariser(t, image_grad, nb):
