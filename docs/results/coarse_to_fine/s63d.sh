@@ -15,11 +15,12 @@
 # term, no consistency term), free (and 3DGS's kernel) (RUNS/d67_<arm>); nocons is the ladder's arm (RUNS/d64_nocons).
 # The sixty-eighth session's one-sided consistency (README, "A consistency term that moves only the normals"): cgrad
 # (RUNS/d68_cgrad); cpull, cpull15: that pull scaled by the normal prior's agreement with SfM (prior_weight_ref 10 or
-# 15 on the consistency alone; RUNS/d68_<arm>).
+# 15 on the consistency alone; RUNS/d68_<arm>). The seventieth session's gpull: cpull off the glass only
+# (prior_weight_where off_glass; RUNS/d70_gpull).
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
 # (the ladder's RUNS/d64_<arm>).
 set -u
-arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free cgrad cpull cpull15, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
+arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free cgrad cpull cpull15 gpull, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
 methods=glint; tag=d63
 case $arm in
   priors) switch=""; methods=priors ;;                              # the renders' check: no training
@@ -42,9 +43,11 @@ case $arm in
   cgrad) switch="--set consistency_grad=normal"; tag=d68 ;;          # the consistency moves only the normals
   cpull) switch="--set prior_weight_ref=10 --set prior_weight_terms=consistency"; tag=d68 ;;    # its pull on the depth
   cpull15) switch="--set prior_weight_ref=15 --set prior_weight_terms=consistency"; tag=d68 ;;  # x min(1, (ref / a)^2)
+  gpull) switch="--set prior_weight_ref=10 --set prior_weight_terms=consistency --set prior_weight_where=off_glass"
+         tag=d70 ;;                                                  # cpull, the glass keeping the whole pull
   i_el|i_copy|i_photo|i_cons) ;;
   *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface, copyel, i_el, i_copy, i_photo, i_cons, i_3dgs," \
-          "photo, nocons, half, quarter, base, agree_n, agree_dn, freesf, free, cgrad, cpull or cpull15" >&2
+          "photo, nocons, half, quarter, base, agree_n, agree_dn, freesf, free, cgrad, cpull, cpull15 or gpull" >&2
      exit 2 ;;
 esac
 case $arm in  # the ladder: each step keeps the ones before it

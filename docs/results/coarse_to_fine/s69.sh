@@ -6,6 +6,8 @@
 # JOB is c:ARM:ROOM:SEED (s63d.sh ARM ROOM at that seed: cpull, or base, today's preset) or s:ROOM:LEVEL (the prior
 # sweep's room-level by prior_sweep/errors55.sh with cpull's switch, folder RUNS/p69_LEVEL_ROOM).
 # Code of the worktree WT (pinned at the declaring commit), RUNS, DATA73 (with levels_ROOM beside the rooms), DATA98.
+# The seventieth session's gpull: ARM=gpull runs s-jobs with its switch (folders RUNS/p70_LEVEL_ROOM), and
+# s:ROOM:LEVEL:SEED a seed alone (--seed-ids SEED; folders RUNS/<tag>s<SEED>_LEVEL_ROOM, so that seeds keep their tables).
 set -u
 cut=${1:?a cut-off, e.g. 22:10}; shift
 here=$(cd "$(dirname "$0")" && pwd)
@@ -17,8 +19,10 @@ for job in "$@"; do
   IFS=: read kind a b c <<< "$job"
   case $kind in
     c) SEED=$c timeout $left bash "$here/s63d.sh" $a $b ;;
-    s) TAG=p69 DATA=$DATA73 SETS="--set prior_weight_ref=10 --set prior_weight_terms=consistency" \
-         timeout $left bash "$here/../prior_sweep/errors55.sh" $a $b ;;
+    s) tag=p69; sets="--set prior_weight_ref=10 --set prior_weight_terms=consistency"
+       [ "${ARM:-cpull}" = gpull ] && tag=p70 && sets="$sets --set prior_weight_where=off_glass"
+       [ -n "$c" ] && tag=${tag}s$c && sets="$sets --seed-ids $c"
+       TAG=$tag DATA=$DATA73 SETS="$sets" timeout $left bash "$here/../prior_sweep/errors55.sh" $a $b ;;
     *) echo "job '$job': c:ARM:ROOM:SEED or s:ROOM:LEVEL" >&2; continue ;;
   esac
   [ $? -eq 124 ] && echo "=== $job stopped at the cut-off $cut"
