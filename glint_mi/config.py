@@ -192,7 +192,10 @@ class LossConfig:
     #                                      (every pixel) or off_glass: per ray s + (1 - s) g, g = max(the interface's
     #                                      rendered transparency (detached), 1 where the SfM see-through cue says
     #                                      seen through), so the glass keeps the whole pull (the cut's gain on 7303 was
-    #                                      off the glass, its losses at 30-deg priors on it). Issue 66, 70th session
+    #                                      off the glass, its losses at 30-deg priors on it). +0.28 dB on 7301-7303,
+    #                                      +0.20 on 9801-9803, 7302's glass kept at x2, but glass GLINT has not found
+    #                                      is still lost (7301 x2: +7 deg of glass normals): not a default
+    #                                      (coarse_to_fine, 70th session)
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
