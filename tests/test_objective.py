@@ -568,3 +568,34 @@ def test_the_objective_is_its_table_of_terms(tmp_path, monkeypatch):
     monkeypatch.setattr(objective, "TERMS", tuple(two))
     part = objective.batch_objective(c, b, out, st, ray, fwd, len(tr.bank.views), tr.extent)[0]
     assert part["total"] == pytest.approx(full["l1"] + full["dssim"], rel=1e-6) and part["depth"] == 0.0
+
+
+def test_off_glass_pull_reaches_the_objective_per_ray(tmp_path):
+    """prior_weight_where: off_glass in the objective: where the interface's rendered transparency is 1 every ray
+    keeps the whole pull (the depth's adjoint equals the uncut one's), where it is 0 and no cue labels a ray every
+    ray gets the share (it equals prior_weight_where: all's); a cue's seen-through rays take the whole pull back."""
+    import dataclasses
+
+    import drjit as dr
+
+    kw = dict(iterations=200, prior_weight_ref=10.0, prior_weight_terms="consistency")
+    c_all = TrainConfig.for_preset("tiny", **kw)
+    c_off = TrainConfig.for_preset("tiny", **kw, prior_weight_where="off_glass")
+    tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c_all, 0.6)
+    assert st["consistency"]
+    b = dataclasses.replace(b, cue=None)
+    n = dr.width(out["depth"])
+    adj = lambda c, o, bb, share: np.array(O.batch_objective(
+        c, bb, o, {**st, "prior_weight": {"consistency": share}}, ray, fwd, len(tr.bank.views), tr.extent)[1]["depth"])
+    with_t = lambda v: {**out, "transparency": mi.Float(np.full(n, v, np.float32))}
+    whole, cut = adj(c_all, with_t(1.0), b, 1.0), adj(c_all, with_t(0.0), b, 0.25)
+    np.testing.assert_array_equal(whole, adj(c_all, with_t(0.0), b, 1.0))  # under all, t does not move it ...
+    assert np.abs(whole - cut).max() > 1e-6  # ... the share does
+    np.testing.assert_allclose(adj(c_off, with_t(1.0), b, 0.25), whole, rtol=1e-4, atol=1e-9)
+    np.testing.assert_allclose(adj(c_off, with_t(0.0), b, 0.25), cut, rtol=1e-4, atol=1e-9)
+    cue = np.zeros(n, np.int8)
+    cue[: n // 2] = 1  # the cue says seen through on the first half of the batch's rays
+    got = adj(c_off, with_t(0.0), dataclasses.replace(b, cue=cue), 0.25)
+    ref_whole = adj(c_all, with_t(0.0), dataclasses.replace(b, cue=cue), 1.0)
+    ref_cut = adj(c_all, with_t(0.0), dataclasses.replace(b, cue=cue), 0.25)
+    assert np.abs(got - ref_cut).max() > 1e-6 and np.abs(got - ref_whole).max() > 1e-6  # neither all whole nor all cut
