@@ -9,12 +9,17 @@
 # The seventieth session's gpull: ARM=gpull runs s-jobs with its switch (folders RUNS/p70_LEVEL_ROOM), and
 # s:ROOM:LEVEL:SEED a seed alone (--seed-ids SEED; folders RUNS/<tag>s<SEED>_LEVEL_ROOM, so that seeds keep their tables).
 set -u
-cut=${1:?a cut-off, e.g. 22:10}; shift
+cut=${1:?a cut-off, e.g. 22:10, or "2026-12-08 00:45" past midnight}; shift
+end=$(date -ud "$cut" +%s) || exit 2
+if [ "$end" -le "$(date -u +%s)" ]; then  # a bare time past midnight reads as today's, already gone
+  echo "cut-off '$cut' is $(date -ud "@$end" '+%F %T') UTC, already past: give the date too, e.g. '$(date -ud tomorrow +%F) 00:45'" >&2
+  exit 2
+fi
 here=$(cd "$(dirname "$0")" && pwd)
 export WT=${WT:-/work/wt69} RUNS=${RUNS:-/work/runs69} PY=${PY:-/work/main/.venv/bin/python}
 export DATA73=${DATA73:-/work/data73} DATA98=${DATA98:-/work/data98_r}
 for job in "$@"; do
-  left=$(( $(date -ud "$cut" +%s) - $(date -u +%s) ))
+  left=$(( end - $(date -u +%s) ))
   if [ $left -le 60 ]; then echo "=== $job not run: past the cut-off $cut"; continue; fi
   IFS=: read kind a b c <<< "$job"
   case $kind in
@@ -23,7 +28,7 @@ for job in "$@"; do
        [ "${ARM:-cpull}" = gpull ] && tag=p70 && sets="$sets --set prior_weight_where=off_glass"
        [ -n "$c" ] && tag=${tag}s$c && sets="$sets --seed-ids $c"
        TAG=$tag DATA=$DATA73 SETS="$sets" timeout $left bash "$here/../prior_sweep/errors55.sh" $a $b ;;
-    *) echo "job '$job': c:ARM:ROOM:SEED or s:ROOM:LEVEL" >&2; continue ;;
+    *) echo "job '$job': c:ARM:ROOM:SEED or s:ROOM:LEVEL[:SEED]" >&2; continue ;;
   esac
   [ $? -eq 124 ] && echo "=== $job stopped at the cut-off $cut"
 done
