@@ -243,17 +243,26 @@ class RayBank:
         lie on a plane (smallest over middle eigenvalue of their covariance < ``planarity``) and whose pixel has a
         normal prior: the angle between that plane's normal and the prior's (unoriented, world space). Empty without
         a normal prior, SfM points (>= ``k``) or tracks."""
-        if self.priors.get("normal") is None or points is None or len(points) < k or not observations:
-            return {}
-        tree, flat, plane = sfm_planes(points, k, planarity)
         out = {}
+        for i, row, col, j, n_prior, plane in self.planar_prior_normals(observations, points, k, planarity):
+            cos = np.abs(np.einsum("ni,ni->n", plane, n_prior)) / np.linalg.norm(n_prior, axis=1)
+            out[i] = (row, col, np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
+        return out
+
+    def planar_prior_normals(self, observations: dict | None, points: np.ndarray | None, k: int = 12,
+                             planarity: float = 0.05):
+        """The features :meth:`normal_prior_sfm_angles` measures, per view: yields (view index, rows [n], cols [n],
+        their SfM points' indices [n], the normal prior there [n, 3] (world space, not normalised), the planes' unit
+        normals [n, 3] (:func:`sfm_planes`, unoriented)). Nothing without a normal prior, SfM points (>= ``k``) or
+        tracks."""
+        if self.priors.get("normal") is None or points is None or len(points) < k or not observations:
+            return
+        tree, flat, plane = sfm_planes(points, k, planarity)
         for i, (row, col, _, xyz) in self.observation_pixels(observations, points=True).items():
             _, j = tree.query(xyz)  # the tracked feature's own 3D point
             n_prior = self.prior_normals_world(i)[row, col]
             ok = flat[j] & (np.linalg.norm(n_prior, axis=1) > 0.5)
-            cos = np.abs(np.einsum("ni,ni->n", plane[j[ok]], n_prior[ok])) / np.linalg.norm(n_prior[ok], axis=1)
-            out[i] = (row[ok], col[ok], np.degrees(np.arccos(np.clip(cos, 0.0, 1.0))))
-        return out
+            yield i, row[ok], col[ok], j[ok], n_prior[ok], plane[j[ok]]
 
     def normal_prior_sfm_agreement(self, observations: dict | None, points: np.ndarray | None, k: int = 12,
                                    planarity: float = 0.05, min_observations: int = 50) -> dict:

@@ -203,13 +203,12 @@ def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None, de
     the normals; the value is the same (between 0 and 1, to float rounding). A Float (detached, per ray) scales each
     ray's depth by its own share (:func:`glass_pull`)."""
     i, r, b = (mi.UInt32(x) for x in nb)
-    if isinstance(depth_grad, dr.ArrayBase):
-        g = dr.detach(mi.Float(depth_grad))
-        dist = g * dist + (1.0 - g) * dr.detach(dist)
-    elif depth_grad <= 0.0:
+    per_ray = isinstance(depth_grad, dr.ArrayBase)
+    if not per_ray and depth_grad <= 0.0:
         dist = dr.detach(dist)
-    elif depth_grad < 1.0:  # the value of dist, a share of its gradient
-        dist = depth_grad * dist + (1.0 - depth_grad) * dr.detach(dist)
+    elif per_ray or depth_grad < 1.0:  # the value of dist, a share of its gradient
+        g = dr.detach(mi.Float(depth_grad)) if per_ray else depth_grad
+        dist = g * dist + (1.0 - g) * dr.detach(dist)
     pts = origin + d * dist
     P0, Pr, Pb = (take(pts, k) for k in (i, r, b))
     n_d = dr.cross(Pr - P0, Pb - P0)

@@ -2,8 +2,8 @@
 part of the normal prior's error that repeats across views tell the rooms where cutting the consistency's pull
 helped (7303, 9803) from those where it hurt (7301 and 7302 at x2)? Measured without ground truth.
 
-At each SfM point on a planar neighbourhood (12 nearest points, planarity 0.05: training.batch.sfm_planes, the
-planes of RayBank.normal_prior_sfm_angles) tracked in >= 3 training views, with a normal prior at its pixel in each:
+At each SfM point on a planar neighbourhood (12 nearest points, planarity 0.05: RayBank.planar_prior_normals, the
+features of RayBank.normal_prior_sfm_angles) tracked in >= 3 training views, with a normal prior at its pixel in each:
 the mean over those views of the angle between the prior's normal and the plane (the per-view error), and the angle
 between the views' mean normal and the plane (the error that repeats in every view: an error drawn independently
 per view averages out of it).
@@ -36,23 +36,22 @@ ROOMS = (("7301 x1", "73:r7301/scene_7301", "helped at share 0.41 (+0.37 dB, two
 def angles(root: Path, k: int = 12, planarity: float = 0.05, min_views: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Per SfM point tracked in >= min_views views: (mean per-view angle, angle of the views' mean normal), deg."""
     from glint_mi.data import load_dataset
-    from glint_mi.training.batch import RayBank, sfm_planes
+    from glint_mi.training.batch import RayBank
 
     ds = load_dataset(root, downscale=2)  # the 40-epoch runs' 96 x 54
     bank = RayBank(ds.train_views, ds.root, use_priors=True)
-    tree, flat, plane = sfm_planes(ds.points, k, planarity)  # the planes normal_prior_sfm_angles measures against
     seen: dict[int, list] = {}
-    for i, (row, col, _, xyz) in bank.observation_pixels(ds.observations(), points=True).items():
-        _, j = tree.query(xyz)
-        n = bank.prior_normals_world(i)[row, col]
-        ok = flat[j] & (np.linalg.norm(n, axis=1) > 0.5)
-        for jj, v in zip(j[ok], n[ok]):
+    planes: dict[int, np.ndarray] = {}
+    # the features normal_prior_sfm_angles measures, grouped by their SfM point
+    for _, _, _, j, n, plane in bank.planar_prior_normals(ds.observations(), ds.points, k, planarity):
+        for jj, v, p in zip(j, n, plane):
             seen.setdefault(int(jj), []).append(v / np.linalg.norm(v))
+            planes[int(jj)] = p
     per_view, common = [], []
     for jj, vs in seen.items():
         if len(vs) < min_views:
             continue
-        V, p = np.array(vs), plane[jj]
+        V, p = np.array(vs), planes[jj]
         V = V * np.sign(V @ p)[:, None]  # unoriented: each view's normal on the plane normal's side
         per_view.append(np.degrees(np.arccos(np.clip(np.abs(V @ p), 0, 1))).mean())
         m = V.mean(0)
