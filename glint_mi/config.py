@@ -196,6 +196,11 @@ class LossConfig:
     #                                      +0.20 on 9801-9803, 7302's glass kept at x2, but glass GLINT has not found
     #                                      is still lost (7301 x2: +7 deg of glass normals): not a default
     #                                      (coarse_to_fine, 70th session)
+    prior_weight_from: float = 0.0       # the fraction of the run from which prior_weight_ref's factors apply; before
+    #                                      it every term it names keeps its whole weight (with prior_weight_where:
+    #                                      off_glass the glass is then found under the whole pull, and t, which
+    #                                      keeps it there, has formed). 0: from the start. coarse_to_fine, 71st
+    #                                      session
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
@@ -609,9 +614,12 @@ class TrainConfig:
              "prior_weight_where",
              "is off_glass, which places the consistency's pull only: add consistency to prior_weight_terms "
              "(and prior_weight_ref > 0), or set prior_weight_where=all")
+        need(self.prior_weight_from == 0.0 or self.prior_weight_ref > 0, "prior_weight_from",
+             f"is {self.prior_weight_from:g}, which delays prior_weight_ref's factors, but prior_weight_ref is 0 (no "
+             f"factor): set prior_weight_ref > 0, or prior_weight_from=0")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "secondary_until", "normal_from",
                   "trans_from", "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from",
-                  "dist_from", "prior_decay"):
+                  "dist_from", "prior_decay", "prior_weight_from"):
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
         need(self.refine_from >= 1.0 or self.secondary_until >= 1.0, "secondary_until",
              "freezes the transmission and reflection sets, refine_from the interface: with both, the end of the run "

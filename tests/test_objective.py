@@ -292,6 +292,10 @@ def test_prior_decay_scales_the_prior_terms_without_recompiling(tmp_path):
     fake.prior_floor = 0.4  # prior_decay_ref: the normal prior falls to its floor from SfM agreement, not to 0
     fake.prior_weight = {"normal": 0.3}  # prior_weight_ref: the run's shares go to the objective with each stage
     assert Trainer.stage(fake, 150)["prior_weight"] == {"normal": 0.3}
+    # prior_weight_from: the shares apply from that fraction of the run; before it every term keeps its weight
+    fake.cfg = TrainConfig.for_preset("tiny", iterations=200, prior_weight_ref=10.0, prior_weight_from=0.5)
+    assert [Trainer.stage(fake, it)["prior_weight"] for it in (0, 99, 100, 199)] == [{}, {}] + [{"normal": 0.3}] * 2
+    fake.cfg = TrainConfig.for_preset("tiny", iterations=200)
     assert scale(100) == 1.0 and scale(150) == pytest.approx(0.7) and scale(200) == pytest.approx(0.4)
 
     tr, st, b, ray, fwd, out = _room_batch_at(tmp_path, c, 0.6)

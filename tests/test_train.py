@@ -1113,6 +1113,13 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency", prior_weight_where="off_glass").validate()
     with pytest.raises(ConfigError, match="prior_weight_ref"):
         tiny_cfg(prior_weight_ref=float("nan")).validate()
+    # prior_weight_from: the factors from that fraction of the run, said in the report's line; refused without them
+    late = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0, prior_weight_from=0.5), ag)
+    assert late[0] == {"normal": pytest.approx(0.25)} and "weighs 0.25 of its weight from 50% of the run" in late[1]
+    with pytest.raises(ConfigError, match="prior_weight_from.*prior_weight_ref is 0"):
+        tiny_cfg(prior_weight_from=0.5).validate()
+    with pytest.raises(ConfigError, match="prior_weight_from"):
+        tiny_cfg(prior_weight_ref=10.0, prior_weight_from=1.5).validate()
 
 
 def test_depth_prior_weights_follow_the_priors_agreement_with_sfm(room, rng):

@@ -128,5 +128,6 @@ def prior_weight_scale(cfg: TrainConfig, agreement: dict | None) -> tuple[dict, 
     names += [f"the depth-normal consistency's pull on the depth{where}"] if "consistency" in terms else []
     many = len(priors) > 1 or len(names) > 1
     which = f"{' and '.join(names)} weigh{'' if many else 's'} {f:.2f} of {'their' if many else 'its'} weight"
+    which += f" from {cfg.prior_weight_from:.0%} of the run" if cfg.prior_weight_from > 0 else ""
     return {t: f for t in terms}, (f"{which}: the normal prior agrees with the SfM points' planes to {a:.1f} deg on "
                                    f"the mean, prior_weight_ref {cfg.prior_weight_ref:g} deg")

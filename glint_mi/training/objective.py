@@ -54,7 +54,8 @@ class Inputs:
 
     def decay(self, term: str):
         """The factor on the prior term ``term``: its schedule (prior_decay, for the terms prior_decay_terms names)
-        times its share from the priors' agreement with SfM (prior_weight_ref; a constant of the run)."""
+        times its share from the priors' agreement with SfM (prior_weight_ref; a constant from prior_weight_from of the
+        run, 1 before it)."""
         share = self.st.get("prior_weight", {}).get(term, 1.0)
         return (self.prior_w if term in self.decays else 1.0) * share
 

@@ -184,7 +184,8 @@ class Trainer:
                 # iteration (0, or the normal prior's share from its agreement with SfM: prior_decay_ref)
                 "prior_scale": 1.0 if c.prior_decay >= 1.0 else self.prior_floor + (1.0 - self.prior_floor) *
                 min(1.0, max(0.0, (c.iterations - it) / max(1, c.iterations - c.at(c.prior_decay)))),
-                "prior_weight": self.prior_weight,  # prior term -> factor (prior_weight_ref; absent: 1)
+                # prior term -> factor (prior_weight_ref; absent: 1), from prior_weight_from of the run
+                "prior_weight": self.prior_weight if on(c.prior_weight_from) else {},
                 "consistency": c.w_consistency > 0 and on(c.consistency_from),
                 "distortion": c.w_dist > 0 and on(c.dist_from),
                 "direct": has_t and c.w_direct > 0,

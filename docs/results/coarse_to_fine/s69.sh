@@ -8,6 +8,7 @@
 # Code of the worktree WT (pinned at the declaring commit), RUNS, DATA73 (with levels_ROOM beside the rooms), DATA98.
 # The seventieth session's gpull: ARM=gpull runs s-jobs with its switch (folders RUNS/p70_LEVEL_ROOM), and
 # s:ROOM:LEVEL:SEED a seed alone (--seed-ids SEED; folders RUNS/<tag>s<SEED>_LEVEL_ROOM, so that seeds keep their tables).
+# The seventy-first session's dpull (gpull from half the run): ARM=dpull, folders RUNS/p71_LEVEL_ROOM.
 set -u
 cut=${1:?a cut-off, e.g. 22:10, or "2026-12-08 00:45" past midnight}; shift
 end=$(date -ud "$cut" +%s) || exit 2
@@ -25,7 +26,10 @@ for job in "$@"; do
   case $kind in
     c) SEED=$c timeout $left bash "$here/s63d.sh" $a $b ;;
     s) tag=p69; sets="--set prior_weight_ref=10 --set prior_weight_terms=consistency"
-       [ "${ARM:-cpull}" = gpull ] && tag=p70 && sets="$sets --set prior_weight_where=off_glass"
+       case ${ARM:-cpull} in
+         gpull) tag=p70; sets="$sets --set prior_weight_where=off_glass" ;;
+         dpull) tag=p71; sets="$sets --set prior_weight_where=off_glass --set prior_weight_from=0.5" ;;
+       esac
        [ -n "$c" ] && tag=${tag}s$c && sets="$sets --seed-ids $c"
        TAG=$tag DATA=$DATA73 SETS="$sets" timeout $left bash "$here/../prior_sweep/errors55.sh" $a $b ;;
     *) echo "job '$job': c:ARM:ROOM:SEED or s:ROOM:LEVEL[:SEED]" >&2; continue ;;
