@@ -856,8 +856,8 @@ def test_normal_attribute_option_trains_and_reaches_every_shape(room, tmp_path):
 @pytest.mark.parametrize("traversal", ["bvh", "auto"])
 def test_device_and_host_updates_train_the_same(room, tmp_path, traversal):
     """update: device (Dr.Jit chain rule, Adam, packing) against update: host (numpy / native C++, float64) over
-    three steps with a densification between them: the same losses to 3e-4 and the same set sizes, and two device
-    runs agree to 3e-4 too (two threads sum gradients in any order, so not bit for bit). With traversal bvh the
+    three steps with a densification between them: the same losses to 1e-3 and the same set sizes, and two device
+    runs agree to 1e-3 too (two threads sum gradients in any order, so not bit for bit). With traversal bvh the
     device's packed shells once reached Mitsuba's BVH build before the kernel writing them had finished: the
     second loss was 0.96-1.09 against 0.816, a different one every run."""
     runs = {}
@@ -871,8 +871,10 @@ def test_device_and_host_updates_train_the_same(room, tmp_path, traversal):
     # A GPU's float atomics sum the gradients in any order, and a densification between the steps carries that
     # rounding on: measured on an H100, the third loss 0.85232 against 0.85208 (2.9e-4). 1e-3 there; on LLVM two
     # threads do the same: 8 device runs, in two processes at once on 2 cores, spread the third loss by 1.1-1.6e-4
-    # (with either normal schedule; CI once failed 1e-4 at 1.04e-4), so 3e-4.
-    rtol = 3e-4 if LLVM else 1e-3
+    # (with either normal schedule; CI once failed 1e-4 at 1.04e-4), and with two trainings beside the test the third
+    # loss differed by 3.03e-4 (0.544646 against 0.544811), so 1e-3 on both: the faults this catches moved the loss
+    # by 15-30 % (the race above) and a wrong chain rule by more.
+    rtol = 1e-3
     np.testing.assert_allclose(runs["device"][0], runs["host"][0], rtol=rtol)
     np.testing.assert_allclose(runs["device_again"][0], runs["device"][0], rtol=rtol)
     with pytest.raises(ConfigError, match="update"):
