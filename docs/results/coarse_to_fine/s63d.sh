@@ -17,7 +17,7 @@
 # (RUNS/d68_cgrad); cpull, cpull15: that pull scaled by the normal prior's agreement with SfM (prior_weight_ref 10 or
 # 15 on the consistency alone; RUNS/d68_<arm>). The seventieth session's gpull: cpull off the glass only
 # (prior_weight_where off_glass; RUNS/d70_gpull). The seventy-first session's dpull: gpull from half the run
-# (prior_weight_from 0.5; RUNS/d71_dpull).
+# (prior_weight_from 0.5; RUNS/d71_dpull). PRINT_SWITCH=1: print the arm's switch and stop (ROOM unread).
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
 # (the ladder's RUNS/d64_<arm>).
 set -u
@@ -59,6 +59,7 @@ case $arm in  # the ladder: each step keeps the ones before it
   i_photo|i_cons) switch="$switch --set w_l1=0.8 --set w_dssim=0.2" ;;&                      # 3DGS's L1 / D-SSIM
   i_cons) switch="$switch --set w_consistency=0" ;;                                          # no consistency term
 esac
+[ -n "${PRINT_SWITCH:-}" ] && { echo "$switch"; exit 0; }  # s69.sh's prior-sweep jobs read an arm's switch here
 case $room in
   730[123]) data=${DATA73:-/work/data73} ;;
   980[123]) data=${DATA98:-/work/data98_r} ;;

@@ -25,11 +25,11 @@ for job in "$@"; do
   IFS=: read kind a b c <<< "$job"
   case $kind in
     c) SEED=$c timeout $left bash "$here/s63d.sh" $a $b ;;
-    s) tag=p69; sets="--set prior_weight_ref=10 --set prior_weight_terms=consistency"
-       case ${ARM:-cpull} in
-         gpull) tag=p70; sets="$sets --set prior_weight_where=off_glass" ;;
-         dpull) tag=p71; sets="$sets --set prior_weight_where=off_glass --set prior_weight_from=0.5" ;;
+    s) case ${ARM:=cpull} in  # the arm's switch from s63d.sh, the one place it is written
+         cpull) tag=p69 ;; gpull) tag=p70 ;; dpull) tag=p71 ;;
+         *) echo "ARM '$ARM': cpull, gpull or dpull for the prior sweep's jobs" >&2; exit 2 ;;
        esac
+       sets=$(PRINT_SWITCH=1 bash "$here/s63d.sh" $ARM -)
        [ -n "$c" ] && tag=${tag}s$c && sets="$sets --seed-ids $c"
        TAG=$tag DATA=$DATA73 SETS="$sets" timeout $left bash "$here/../prior_sweep/errors55.sh" $a $b ;;
     *) echo "job '$job': c:ARM:ROOM:SEED or s:ROOM:LEVEL[:SEED]" >&2; continue ;;
