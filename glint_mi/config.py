@@ -199,8 +199,9 @@ class LossConfig:
     prior_weight_from: float = 0.0       # the fraction of the run from which prior_weight_ref's factors apply; before
     #                                      it every term it names keeps its whole weight (with prior_weight_where:
     #                                      off_glass the glass is then found under the whole pull, and t, which
-    #                                      keeps it there, has formed). 0: from the start. coarse_to_fine, 71st
-    #                                      session
+    #                                      keeps it there, has formed). 0: from the start. 0.5 with off_glass
+    #                                      (dpull): +0.19 dB on 7301-7303, +0.08 on 9801-9803, no depth gain, 7302's
+    #                                      glass lost at x2: not a default (coarse_to_fine, 71st session)
     prior_layer: str = "nearer"          # which layer the depth and normal priors describe: nearer (glint_mi's):
     #                                      where the interface is transparent (t > 0.5) and the transmission set a
     #                                      surface, whichever of the two agrees better with the prior (an estimator
