@@ -620,7 +620,7 @@ class TrainConfig:
              f"factor): set prior_weight_ref > 0, or prior_weight_from=0")
         for f in ("warmup", "transmission_from", "reflection_from", "refine_from", "secondary_until", "normal_from",
                   "trans_from", "treg_from", "plausibility_from", "densify_from", "densify_until", "consistency_from",
-                  "dist_from", "prior_decay", "prior_weight_from"):
+                  "dist_from", "prior_decay"):
             need(0.0 <= getattr(self, f) <= 1.0, f, "is a fraction of the run: 0..1")
         need(self.refine_from >= 1.0 or self.secondary_until >= 1.0, "secondary_until",
              "freezes the transmission and reflection sets, refine_from the interface: with both, the end of the run "
