@@ -196,6 +196,11 @@ class LossConfig:
     #                                      +0.20 on 9801-9803, 7302's glass kept at x2, but glass GLINT has not found
     #                                      is still lost (7301 x2: +7 deg of glass normals): not a default
     #                                      (coarse_to_fine, 70th session)
+    prior_weight_glass_t: float = 1.0    # with prior_weight_where: off_glass, the rendered transparency from which a
+    #                                      ray counts as glass wholly: g = min(1, t / this). 1: g = t (gpull). Lower
+    #                                      gives glass GLINT has partly found (t ~0.7 on found glass, mid-range while
+    #                                      it forms) the whole pull; off the glass t is mostly ~0 (mean 0.07-0.16).
+    #                                      docs/results/coarse_to_fine, 72nd session
     prior_weight_from: float = 0.0       # the fraction of the run from which prior_weight_ref's factors apply; before
     #                                      it every term it names keeps its whole weight (with prior_weight_where:
     #                                      off_glass the glass is then found under the whole pull, and t, which
@@ -615,6 +620,11 @@ class TrainConfig:
              "prior_weight_where",
              "is off_glass, which places the consistency's pull only: add consistency to prior_weight_terms "
              "(and prior_weight_ref > 0), or set prior_weight_where=all")
+        need(math.isfinite(self.prior_weight_glass_t) and 0.0 < self.prior_weight_glass_t <= 1.0,
+             "prior_weight_glass_t", "is a transparency in (0, 1] (1: g = t)")
+        need(self.prior_weight_glass_t == 1.0 or self.prior_weight_where == "off_glass", "prior_weight_glass_t",
+             f"shapes prior_weight_where: off_glass's g, but prior_weight_where is {self.prior_weight_where}: set prior_weight_where=off_glass, or "
+             f"prior_weight_glass_t=1")
         need(self.prior_weight_from == 0.0 or self.prior_weight_ref > 0, "prior_weight_from",
              f"is {self.prior_weight_from:g}, which delays prior_weight_ref's factors, but prior_weight_ref is 0 (no "
              f"factor): set prior_weight_ref > 0, or prior_weight_from=0")

@@ -603,3 +603,8 @@ def test_off_glass_pull_reaches_the_objective_per_ray(tmp_path):
     ref_whole = adj(c_all, with_t(0.0), dataclasses.replace(b, cue=cue), 1.0)
     ref_cut = adj(c_all, with_t(0.0), dataclasses.replace(b, cue=cue), 0.25)
     assert np.abs(got - ref_cut).max() > 1e-6 and np.abs(got - ref_whole).max() > 1e-6  # neither all whole nor all cut
+    # prior_weight_glass_t 0.5: half-found glass (t 0.5) keeps the whole pull; under gpull's g = t it gets less
+    c_step = dataclasses.replace(c_off, prior_weight_glass_t=0.5)
+    np.testing.assert_allclose(adj(c_step, with_t(0.5), b, 0.25), whole, rtol=1e-4, atol=1e-9)
+    assert np.abs(adj(c_off, with_t(0.5), b, 0.25) - whole).max() > 1e-6
+    np.testing.assert_allclose(adj(c_step, with_t(0.0), b, 0.25), cut, rtol=1e-4, atol=1e-9)

@@ -387,6 +387,10 @@ def test_patch_losses():
     want = 0.25 + 0.75 * np.maximum(t, cue > 0)
     np.testing.assert_allclose(np.array(g), want, rtol=1e-6)
     assert L.glass_pull(1.0, mi.Float(t), None) == 1.0  # no cut: the scalar path, kernels as before
+    # prior_weight_glass_t 0.5: g = min(1, t / 0.5), the half-found glass (t 0.5) keeps the whole pull
+    np.testing.assert_allclose(np.array(L.glass_pull(0.25, mi.Float(t), mi.Float(cue), 0.5)),
+                               0.25 + 0.75 * np.maximum(np.minimum(t / 0.5, 1.0), cue > 0), rtol=1e-6)
+    np.testing.assert_allclose(np.array(L.glass_pull(0.25, mi.Float([0.2]), None, 0.5)), [0.25 + 0.75 * 0.4], rtol=1e-6)
     dd = mi.Float(bump)
     n = mi.Vector3f(*[mi.Float(np.full(M, c)) for c in (0.1, -0.2, -1.0)])
     dr.enable_grad(dd, n)
@@ -1113,6 +1117,16 @@ def test_normal_prior_agreement_with_sfm_planes(room, rng):
     with pytest.raises(ConfigError, match="prior_weight_where"):
         tiny_cfg(prior_weight_where="glass").validate()
     tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency", prior_weight_where="off_glass").validate()
+    # prior_weight_glass_t: where g reaches 1, said in the line; refused out of (0, 1] or without off_glass
+    step = prior_weight_scale(tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency",
+                                       prior_weight_where="off_glass", prior_weight_glass_t=0.5), ag)[1]
+    assert "(prior_weight_where: off_glass, whole from t 0.5) weighs 0.25" in step
+    with pytest.raises(ConfigError, match="prior_weight_glass_t.*prior_weight_where is all"):
+        tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency", prior_weight_glass_t=0.5).validate()
+    for bad, why in ((0.0, "in \\(0, 1\\]"), (1.5, "in \\(0, 1\\]"), (float("nan"), "a number")):
+        with pytest.raises(ConfigError, match=f"prior_weight_glass_t.*{why}"):
+            tiny_cfg(prior_weight_ref=10.0, prior_weight_terms="consistency", prior_weight_where="off_glass",
+                     prior_weight_glass_t=bad).validate()
     with pytest.raises(ConfigError, match="prior_weight_ref"):
         tiny_cfg(prior_weight_ref=float("nan")).validate()
     # prior_weight_from: the factors from that fraction of the run, said in the report's line; refused without them

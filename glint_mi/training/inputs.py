@@ -124,7 +124,8 @@ def prior_weight_scale(cfg: TrainConfig, agreement: dict | None) -> tuple[dict, 
     terms = cfg.prior_weight_terms.split(",")
     priors = [t for t in terms if t != "consistency"]
     names = [f"the {' and '.join(priors)} prior{'s' if len(priors) > 1 else ''}"] if priors else []
-    where = " off the glass (prior_weight_where: off_glass)" if cfg.prior_weight_where == "off_glass" else ""
+    full = f", whole from t {cfg.prior_weight_glass_t:g}" if cfg.prior_weight_glass_t < 1.0 else ""
+    where = f" off the glass (prior_weight_where: off_glass{full})" if cfg.prior_weight_where == "off_glass" else ""
     names += [f"the depth-normal consistency's pull on the depth{where}"] if "consistency" in terms else []
     many = len(priors) > 1 or len(names) > 1
     which = f"{' and '.join(names)} weigh{'' if many else 's'} {f:.2f} of {'their' if many else 'its'} weight"

@@ -224,13 +224,15 @@ def depth_normal_consistency(origin, d, dist, normal, valid, nb, weight=None, de
     return dr.sum(term) / dr.maximum(dr.count(ok), 1)
 
 
-def glass_pull(share: float, t, cue=None):
+def glass_pull(share: float, t, cue=None, t_full: float = 1.0):
     """``prior_weight_where: off_glass``: the consistency's pull on the depth per ray, share + (1 - share) g, with
-    g = max(clip(t, 0, 1), 1 where the SfM see-through ``cue`` > 0): the whole pull on the glass (the rendered
-    transparency ``t`` or the cue says seen through), the share elsewhere. Detached; a share >= 1 stays 1.0."""
+    g = max(clip(t / t_full, 0, 1), 1 where the SfM see-through ``cue`` > 0): the whole pull on the glass (the rendered
+    transparency ``t`` reaches ``t_full``, prior_weight_glass_t, or the cue says seen through), the share elsewhere.
+    Detached; a share >= 1 stays 1.0."""
     if share >= 1.0:
         return 1.0
-    g = dr.clip(dr.detach(mi.Float(t)), 0.0, 1.0)
+    t = dr.detach(mi.Float(t))
+    g = dr.clip(t if t_full == 1.0 else t * (1.0 / t_full), 0.0, 1.0)
     if cue is not None:
         g = dr.select(mi.Float(cue) > 0, 1.0, g)
     return share + (1.0 - share) * g

@@ -107,7 +107,7 @@ def _consistency(x):
     # its pull on the depth: none (consistency_grad: normal), else the share prior_weight_ref gives it (1: the paper)
     pull = 0.0 if c.consistency_grad == "normal" else x.st.get("prior_weight", {}).get("consistency", 1.0)
     if c.prior_weight_where == "off_glass":  # the glass keeps the whole pull, per ray
-        pull = L.glass_pull(pull, x.t, x.b.cue)
+        pull = L.glass_pull(pull, x.t, x.b.cue, c.prior_weight_glass_t)
     value = c.w_consistency * L.depth_normal_consistency(x.ray.o, x.ray.d, dist, x.normal, x.A > 0.5, x.nb, x.w_near,
                                                          pull)
     if x.traced_t and x.st["direct"]:

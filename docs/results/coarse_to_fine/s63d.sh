@@ -17,11 +17,12 @@
 # (RUNS/d68_cgrad); cpull, cpull15: that pull scaled by the normal prior's agreement with SfM (prior_weight_ref 10 or
 # 15 on the consistency alone; RUNS/d68_<arm>). The seventieth session's gpull: cpull off the glass only
 # (prior_weight_where off_glass; RUNS/d70_gpull). The seventy-first session's dpull: gpull from half the run
-# (prior_weight_from 0.5; RUNS/d71_dpull). PRINT_SWITCH=1: print the arm's switch and stop (ROOM unread).
+# (prior_weight_from 0.5; RUNS/d71_dpull). The seventy-second session's hpull, qpull: gpull whose g reaches 1 at t 0.5,
+# 0.25 (prior_weight_glass_t; RUNS/d72_<arm>). PRINT_SWITCH=1: print the arm's switch and stop (ROOM unread).
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
 # (the ladder's RUNS/d64_<arm>).
 set -u
-arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free cgrad cpull cpull15 gpull dpull, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
+arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free cgrad cpull cpull15 gpull dpull hpull qpull, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
 methods=glint; tag=d63
 case $arm in
   priors) switch=""; methods=priors ;;                              # the renders' check: no training
@@ -48,9 +49,14 @@ case $arm in
          tag=d70 ;;                                                  # cpull, the glass keeping the whole pull
   dpull) switch="--set prior_weight_ref=10 --set prior_weight_terms=consistency --set prior_weight_where=off_glass \
 --set prior_weight_from=0.5"; tag=d71 ;;                           # gpull from half the run (the glass found first)
+  hpull) switch="--set prior_weight_ref=10 --set prior_weight_terms=consistency --set prior_weight_where=off_glass \
+--set prior_weight_glass_t=0.5"; tag=d72 ;;                        # gpull, g = min(1, t / 0.5): half-found glass whole
+  qpull) switch="--set prior_weight_ref=10 --set prior_weight_terms=consistency --set prior_weight_where=off_glass \
+--set prior_weight_glass_t=0.25"; tag=d72 ;;                       # and from t 0.25
   i_el|i_copy|i_photo|i_cons) ;;
   *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface, copyel, i_el, i_copy, i_photo, i_cons, i_3dgs," \
-          "photo, nocons, half, quarter, base, agree_n, agree_dn, freesf, free, cgrad, cpull, cpull15, gpull or dpull" >&2
+          "photo, nocons, half, quarter, base, agree_n, agree_dn, freesf, free, cgrad, cpull, cpull15, gpull, dpull," \
+          "hpull or qpull" >&2
      exit 2 ;;
 esac
 case $arm in  # the ladder: each step keeps the ones before it
