@@ -200,7 +200,8 @@ class LossConfig:
     #                                      ray counts as glass wholly: g = min(1, t / this). 1: g = t (gpull). Lower
     #                                      gives glass GLINT has partly found (t ~0.7 on found glass, mid-range while
     #                                      it forms) the whole pull; off the glass t is mostly ~0 (mean 0.07-0.16).
-    #                                      docs/results/coarse_to_fine, 72nd session
+    #                                      0.5 and 0.25 halve gpull's glass loss at realistic-v1 x2 (+7.8 -> +3.5
+    #                                      deg) but keep +4-5 deg at 7301 x2: not a default (coarse_to_fine, 72nd)
     prior_weight_from: float = 0.0       # the fraction of the run from which prior_weight_ref's factors apply; before
     #                                      it every term it names keeps its whole weight (with prior_weight_where:
     #                                      off_glass the glass is then found under the whole pull, and t, which
