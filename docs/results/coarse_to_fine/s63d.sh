@@ -18,11 +18,12 @@
 # 15 on the consistency alone; RUNS/d68_<arm>). The seventieth session's gpull: cpull off the glass only
 # (prior_weight_where off_glass; RUNS/d70_gpull). The seventy-first session's dpull: gpull from half the run
 # (prior_weight_from 0.5; RUNS/d71_dpull). The seventy-second session's hpull, qpull: gpull whose g reaches 1 at t 0.5,
-# 0.25 (prior_weight_glass_t; RUNS/d72_<arm>). PRINT_SWITCH=1: print the arm's switch and stop (ROOM unread).
+# 0.25 (prior_weight_glass_t; RUNS/d72_<arm>); epull: gpull from 10/60 of the run (prior_weight_from, the whole pull
+# while t forms; RUNS/d72_epull). PRINT_SWITCH=1: print the arm's switch and stop (ROOM unread).
 # Code of the worktree WT (pinned at the declaring commit); rooms DATA73/rROOM or DATA98/rROOM; folder RUNS/d63_<arm>
 # (the ladder's RUNS/d64_<arm>).
 set -u
-arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free cgrad cpull cpull15 gpull dpull hpull qpull, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
+arm=${1:?an arm: priors 3dgs copy noterms el iface copyel half quarter base agree_n agree_dn freesf free cgrad cpull cpull15 gpull dpull hpull qpull epull, or a ladder step i_el i_copy i_photo i_cons i_3dgs}; room=${2:?a room: 7301 7302 7303}
 methods=glint; tag=d63
 case $arm in
   priors) switch=""; methods=priors ;;                              # the renders' check: no training
@@ -53,10 +54,12 @@ case $arm in
 --set prior_weight_glass_t=0.5"; tag=d72 ;;                        # gpull, g = min(1, t / 0.5): half-found glass whole
   qpull) switch="--set prior_weight_ref=10 --set prior_weight_terms=consistency --set prior_weight_where=off_glass \
 --set prior_weight_glass_t=0.25"; tag=d72 ;;                       # and from t 0.25
+  epull) switch="--set prior_weight_ref=10 --set prior_weight_terms=consistency --set prior_weight_where=off_glass \
+--set prior_weight_from=0.1667"; tag=d72 ;;                        # gpull from 10/60 (the whole pull while t forms)
   i_el|i_copy|i_photo|i_cons) ;;
   *) echo "arm '$arm': use priors, 3dgs, copy, noterms, el, iface, copyel, i_el, i_copy, i_photo, i_cons, i_3dgs," \
           "photo, nocons, half, quarter, base, agree_n, agree_dn, freesf, free, cgrad, cpull, cpull15, gpull, dpull," \
-          "hpull or qpull" >&2
+          "hpull, qpull or epull" >&2
      exit 2 ;;
 esac
 case $arm in  # the ladder: each step keeps the ones before it

@@ -9,7 +9,8 @@
 # The seventieth session's gpull: ARM=gpull runs s-jobs with its switch (folders RUNS/p70_LEVEL_ROOM), and
 # s:ROOM:LEVEL:SEED a seed alone (--seed-ids SEED; folders RUNS/<tag>s<SEED>_LEVEL_ROOM, so that seeds keep their tables).
 # The seventy-first session's dpull (gpull from half the run): ARM=dpull, folders RUNS/p71_LEVEL_ROOM.
-# The seventy-second session's hpull, qpull (gpull, g whole from t 0.5, 0.25): folders RUNS/p72_ / p72q_LEVEL_ROOM.
+# The seventy-second session's hpull, qpull (gpull, g whole from t 0.5, 0.25): folders RUNS/p72_ / p72q_LEVEL_ROOM;
+# epull (gpull from 10/60 of the run): RUNS/p72e_LEVEL_ROOM.
 set -u
 cut=${1:?a cut-off, e.g. 22:10, or "2026-12-08 00:45" past midnight}; shift
 end=$(date -ud "$cut" +%s) || exit 2
@@ -28,7 +29,8 @@ for job in "$@"; do
     c) SEED=$c timeout $left bash "$here/s63d.sh" $a $b ;;
     s) case ${ARM:=cpull} in  # the arm's switch from s63d.sh, the one place it is written
          cpull) tag=p69 ;; gpull) tag=p70 ;; dpull) tag=p71 ;; hpull) tag=p72 ;; qpull) tag=p72q ;;
-         *) echo "ARM '$ARM': cpull, gpull, dpull, hpull or qpull for the prior sweep's jobs" >&2; exit 2 ;;
+         epull) tag=p72e ;;
+         *) echo "ARM '$ARM': cpull, gpull, dpull, hpull, qpull or epull for the prior sweep's jobs" >&2; exit 2 ;;
        esac
        sets=$(PRINT_SWITCH=1 bash "$here/s63d.sh" $ARM -)
        [ -n "$c" ] && tag=${tag}s$c && sets="$sets --seed-ids $c"
