@@ -624,8 +624,8 @@ class TrainConfig:
         need(math.isfinite(self.prior_weight_glass_t) and 0.0 < self.prior_weight_glass_t <= 1.0,
              "prior_weight_glass_t", "is a transparency in (0, 1] (1: g = t)")
         need(self.prior_weight_glass_t == 1.0 or self.prior_weight_where == "off_glass", "prior_weight_glass_t",
-             f"shapes prior_weight_where: off_glass's g, but prior_weight_where is {self.prior_weight_where}: set prior_weight_where=off_glass, or "
-             f"prior_weight_glass_t=1")
+             f"shapes prior_weight_where: off_glass's g, but prior_weight_where is {self.prior_weight_where}: set "
+             f"prior_weight_where=off_glass, or prior_weight_glass_t=1")
         need(self.prior_weight_from == 0.0 or self.prior_weight_ref > 0, "prior_weight_from",
              f"is {self.prior_weight_from:g}, which delays prior_weight_ref's factors, but prior_weight_ref is 0 (no "
              f"factor): set prior_weight_ref > 0, or prior_weight_from=0")
