@@ -199,7 +199,7 @@ class LossConfig:
     prior_weight_glass_t: float = 1.0    # with prior_weight_where: off_glass, the rendered transparency from which a
     #                                      ray counts as glass wholly: g = min(1, t / this). 1: g = t (gpull). Lower
     #                                      gives glass GLINT has partly found (t ~0.7 on found glass, mid-range while
-    #                                      it forms) the whole pull; off the glass t is mostly ~0 (mean 0.07-0.16).
+    #                                      it forms) the whole pull; off the glass t is mostly ~0 (mean 0.01-0.16).
     #                                      0.5 and 0.25 halve gpull's glass loss at realistic-v1 x2 (+7.8 -> +3.5
     #                                      deg) but keep +4-5 deg at 7301 x2: not a default (coarse_to_fine, 72nd)
     prior_weight_from: float = 0.0       # the fraction of the run from which prior_weight_ref's factors apply; before
