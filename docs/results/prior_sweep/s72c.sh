@@ -5,6 +5,8 @@
 #   bash docs/results/prior_sweep/s72c.sh ROOM NAME SEED      (7303 own, or 7302 see_0.2; SEED 0 or 1)
 # NAME own: the room's own priors (DATA/rROOM); see_0.2: the see-through level (DATA/levels_ROOM/see_0.2, made by
 # levels.sh if absent). Folder RUNS/c72_NAME_ROOM (seed 1 as METHOD@seed1). WT (the code: a worktree), RUNS, DATA, PY.
+# PRESET=bench: the bench preset as a user gets it at the rooms' own 192 x 108 (10 epochs: the rays of 40 epochs at
+# 96 x 54), the same flags but downscale; folder RUNS/b72_NAME_ROOM.
 set -u
 WT=${WT:?WT: the worktree of the declared code}; RUNS=${RUNS:?RUNS: where the runs go}
 DATA=${DATA:-/work/data73}; PY=${PY:-/work/main/.venv/bin/python}
@@ -18,7 +20,12 @@ case $name in
 esac
 [ -d "$data" ] || { echo "no room at $data" >&2; exit 2; }
 cd "$WT" && export PYTHONPATH=$WT:${WT}_path || exit 1
-echo "=== $(date -u +%FT%TZ) converged $name $room seed $seed"
-$PY -m glint_mi.benchmark --preset converged --set downscale=2 --set w_sfm_depth=0 --set threads=1 \
-    --set eval_every=1000 --seed-ids $seed --methods priors,glint --data "$data" --out "$RUNS/c72_${name}_$room"
+case ${PRESET:=converged} in
+  converged) flags="--preset converged --set downscale=2"; tag=c72 ;;
+  bench) flags="--preset bench"; tag=b72 ;;
+  *) echo "PRESET '$PRESET': converged or bench" >&2; exit 2 ;;
+esac
+echo "=== $(date -u +%FT%TZ) $PRESET $name $room seed $seed"
+$PY -m glint_mi.benchmark $flags --set w_sfm_depth=0 --set threads=1 \
+    --set eval_every=1000 --seed-ids $seed --methods priors,glint --data "$data" --out "$RUNS/${tag}_${name}_$room"
 echo "=== rc=$? $(date -u +%FT%TZ)"
