@@ -621,8 +621,7 @@ class TrainConfig:
              "prior_weight_where",
              "is off_glass, which places the consistency's pull only: add consistency to prior_weight_terms "
              "(and prior_weight_ref > 0), or set prior_weight_where=all")
-        need(math.isfinite(self.prior_weight_glass_t) and 0.0 < self.prior_weight_glass_t <= 1.0,
-             "prior_weight_glass_t", "is a transparency in (0, 1] (1: g = t)")
+        need(0.0 < self.prior_weight_glass_t <= 1.0, "prior_weight_glass_t", "is a transparency in (0, 1] (1: g = t)")
         need(self.prior_weight_glass_t == 1.0 or self.prior_weight_where == "off_glass", "prior_weight_glass_t",
              f"shapes prior_weight_where: off_glass's g, but prior_weight_where is {self.prior_weight_where}: set "
              f"prior_weight_where=off_glass, or prior_weight_glass_t=1")

@@ -231,8 +231,7 @@ def glass_pull(share: float, t, cue=None, t_full: float = 1.0):
     Detached; a share >= 1 stays 1.0."""
     if share >= 1.0:
         return 1.0
-    t = dr.detach(mi.Float(t))
-    g = dr.clip(t if t_full == 1.0 else t * (1.0 / t_full), 0.0, 1.0)
+    g = dr.clip(dr.detach(mi.Float(t)) / t_full, 0.0, 1.0)
     if cue is not None:
         g = dr.select(mi.Float(cue) > 0, 1.0, g)
     return share + (1.0 - share) * g
